@@ -1,0 +1,27 @@
+"""Bus contract: message bodies, the envelope, key-expression builders and the msgpack codec.
+
+No zenoh import here: the schemas are plain pydantic models usable from any process or test.
+"""
+
+from bus_schemas.bodies import (
+    Done,
+    Move,
+    PlantState,
+    Sample,
+    Setpoint,
+    Stop,
+    Tick,
+)
+from bus_schemas.envelope import SCHEMA_VERSION, Envelope
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "Envelope",
+    "Done",
+    "Move",
+    "PlantState",
+    "Sample",
+    "Setpoint",
+    "Stop",
+    "Tick",
+]

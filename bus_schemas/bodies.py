@@ -1,0 +1,103 @@
+"""One pydantic model per message body.
+
+Bodies are frozen and forbid extra fields; time is integer ticks, never float.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+__all__ = ["Sample", "Move", "Setpoint", "PlantState", "Tick", "Done", "Stop"]
+
+_FROZEN = ConfigDict(frozen=True, extra="forbid")
+
+
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise ValueError(f"must be a finite number, got {value!r}")
+    return value
+
+
+class Sample(BaseModel):
+    """A measurement: taken at a sensor (``plant/<p>/sensor/<s>``) or delivered (``loop/<l>/meas``)."""
+
+    model_config = _FROZEN
+
+    value: float = Field(description="measured value, in the signal's engineering unit")
+    t_sampled: int = Field(ge=0, strict=True, description="time the sample was taken, ticks")
+
+    _check_value = field_validator("value")(_finite)
+
+
+class Move(BaseModel):
+    """A control move: computed (``loop/<l>/u``) or delivered (``plant/<p>/actuator/<i>``)."""
+
+    model_config = _FROZEN
+
+    value: float = Field(description="actuator command, in the input's engineering unit")
+    t_computed: int = Field(ge=0, strict=True, description="time the move was computed, ticks")
+
+    _check_value = field_validator("value")(_finite)
+
+
+class Setpoint(BaseModel):
+    """A new set point of one loop (``ops/setpoint/<loop>``)."""
+
+    model_config = _FROZEN
+
+    value: float
+
+    _check_value = field_validator("value")(_finite)
+
+
+class PlantState(BaseModel):
+    """A plant's continuous state, published on a fixed monitoring grid (``plant/<p>/state``).
+
+    These are the true values, not measurements; reports compute overshoot from them.
+    """
+
+    model_config = _FROZEN
+
+    values: dict[str, float] = Field(description="state variables by name")
+
+
+class Tick(BaseModel):
+    """Start of clock round ``round`` at time ``t`` (DESIGN section 3, step 1)."""
+
+    model_config = _FROZEN
+
+    round: int = Field(ge=0, strict=True)
+    t: int = Field(ge=0, strict=True, description="ticks")
+    expected: dict[str, int] = Field(
+        description="run-relative key -> messages published on it in the previous round"
+    )
+
+
+class Done(BaseModel):
+    """A participant has finished round ``round`` (DESIGN section 3, step 2)."""
+
+    model_config = _FROZEN
+
+    round: int = Field(ge=0, strict=True)
+    node: str
+    published: dict[str, int] = Field(description="run-relative key -> count, this round")
+    next_time: int | None = Field(
+        default=None, description="earliest pending timer of the node, ticks; None if none"
+    )
+    dropped_invalid: dict[str, int] = Field(
+        default_factory=dict, description="run-relative key -> messages dropped so far"
+    )
+
+
+class Stop(BaseModel):
+    """End of the run, normal (``ok``) or because of a fault named in ``reason``."""
+
+    model_config = _FROZEN
+
+    ok: bool
+    reason: str = ""
+    round: int = Field(ge=0, strict=True)
+    t: int = Field(ge=0, strict=True)
+    dropped_invalid: dict[str, int] = Field(default_factory=dict)

@@ -1,0 +1,83 @@
+"""The msgpack codec: the only place msgpack is called.
+
+``encode`` turns an :class:`~bus_schemas.envelope.Envelope` into bytes; ``decode_envelope``
+checks the envelope of raw bytes; ``decode_body`` validates its body against a schema.
+Every failure is a :class:`runtime.errors.SchemaError` saying what was wrong.
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import msgpack
+from pydantic import BaseModel, ValidationError
+
+from bus_schemas.envelope import SCHEMA_VERSION, Envelope, RawEnvelope
+from runtime.errors import SchemaError
+
+__all__ = ["ENCODING", "encode", "pack_body", "decode_envelope", "decode_body", "decode"]
+
+ENCODING = "application/msgpack"
+
+BodyT = TypeVar("BodyT", bound=BaseModel)
+
+
+def pack_body(body: BaseModel) -> bytes:
+    """The msgpack bytes of a body alone (the historian stores bodies without envelopes)."""
+    return msgpack.packb(body.model_dump(mode="python"), use_bin_type=True)
+
+
+def encode(
+    *, run: str, src: str, seq: int, round: int, t: int, body: BaseModel
+) -> bytes:
+    """Encode one message; the body must already be a validated model."""
+    return msgpack.packb(
+        {
+            "v": SCHEMA_VERSION,
+            "run": run,
+            "src": src,
+            "seq": seq,
+            "round": round,
+            "t": t,
+            "body": body.model_dump(mode="python"),
+        },
+        use_bin_type=True,
+    )
+
+
+def _first_error(err: ValidationError) -> str:
+    e = err.errors()[0]
+    loc = ".".join(str(p) for p in e["loc"]) or "<root>"
+    more = f" (+{err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    return f"{loc}: {e['msg']}{more}"
+
+
+def decode_envelope(raw: bytes) -> RawEnvelope:
+    """Unpack and check an envelope; the body is left as a mapping."""
+    try:
+        obj = msgpack.unpackb(raw, raw=False, strict_map_key=True)
+    except (msgpack.ExtraData, msgpack.FormatError, msgpack.StackError, ValueError) as err:
+        raise SchemaError(f"not a msgpack message: {err}") from err
+    except Exception as err:  # msgpack raises assorted errors on garbage; all mean the same
+        raise SchemaError(f"not a msgpack message: {type(err).__name__}: {err}") from err
+    if not isinstance(obj, dict):
+        raise SchemaError(f"envelope must be a map, got {type(obj).__name__}")
+    try:
+        return RawEnvelope.model_validate(obj)
+    except ValidationError as err:
+        raise SchemaError(f"bad envelope: {_first_error(err)}") from err
+
+
+def decode_body(env: RawEnvelope, body_type: type[BodyT]) -> BodyT:
+    """Validate the body of a checked envelope against ``body_type``."""
+    try:
+        return body_type.model_validate(env.body)
+    except ValidationError as err:
+        raise SchemaError(f"bad {body_type.__name__} body: {_first_error(err)}") from err
+
+
+def decode(raw: bytes, body_type: type[BodyT]) -> Envelope[BodyT]:
+    """Decode and validate a whole message."""
+    env = decode_envelope(raw)
+    body = decode_body(env, body_type)
+    return Envelope[body_type](**env.model_dump(exclude={"body"}), body=body)

@@ -1,0 +1,120 @@
+"""Key-expression builders (DESIGN section 4).
+
+Builders return keys *relative* to the run (``plant/reactor/sensor/H``); :func:`full` puts them
+under ``wncs/<run>/``. Nodes, the historian and summaries speak relative keys, so a history does
+not depend on the run id. Every name is checked to be one key chunk.
+"""
+
+from __future__ import annotations
+
+import re
+
+__all__ = [
+    "PREFIX",
+    "NAME_PATTERN",
+    "check_name",
+    "full",
+    "relative",
+    "run_prefix",
+    "tick",
+    "done",
+    "done_all",
+    "stop",
+    "alive",
+    "alive_all",
+    "sensor",
+    "actuator",
+    "plant_state",
+    "meas",
+    "move",
+    "setpoint",
+    "setpoint_all",
+]
+
+PREFIX = "wncs"
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_\-]*$"
+_NAME = re.compile(NAME_PATTERN)
+
+
+def check_name(name: str, what: str = "name") -> str:
+    """Return ``name`` if it is a valid single key chunk, else raise ``ValueError``."""
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ValueError(
+            f"{what} {name!r} is not a valid key chunk (letters, digits, '_' and '-' only)"
+        )
+    return name
+
+
+def run_prefix(run: str) -> str:
+    """``wncs/<run>``."""
+    return f"{PREFIX}/{check_name(run, 'run id')}"
+
+
+def full(run: str, rel: str) -> str:
+    """The absolute key of run-relative key ``rel``."""
+    return f"{run_prefix(run)}/{rel}"
+
+
+def relative(run: str, key: str) -> str:
+    """The run-relative part of absolute key ``key`` (``ValueError`` if it is not in the run)."""
+    prefix = run_prefix(run) + "/"
+    if not key.startswith(prefix):
+        raise ValueError(f"key {key!r} is not under {prefix!r}")
+    return key[len(prefix) :]
+
+
+def tick() -> str:
+    return "clock/tick"
+
+
+def done(node: str) -> str:
+    return f"clock/done/{check_name(node, 'node')}"
+
+
+def done_all() -> str:
+    return "clock/done/*"
+
+
+def stop() -> str:
+    return "clock/stop"
+
+
+def alive(node: str) -> str:
+    return f"alive/{check_name(node, 'node')}"
+
+
+def alive_all() -> str:
+    return "alive/*"
+
+
+def sensor(plant: str, signal: str) -> str:
+    """Sample taken at the sensor node, before the radio."""
+    return f"plant/{check_name(plant, 'plant')}/sensor/{check_name(signal, 'signal')}"
+
+
+def actuator(plant: str, input_name: str) -> str:
+    """Command as delivered at the actuator."""
+    return f"plant/{check_name(plant, 'plant')}/actuator/{check_name(input_name, 'input')}"
+
+
+def plant_state(plant: str) -> str:
+    """The plant's true state on its monitoring grid (for reports, not for control)."""
+    return f"plant/{check_name(plant, 'plant')}/state"
+
+
+def meas(loop: str) -> str:
+    """Sample as delivered to the loop's controller."""
+    return f"loop/{check_name(loop, 'loop')}/meas"
+
+
+def move(loop: str) -> str:
+    """Controller output, before the network."""
+    return f"loop/{check_name(loop, 'loop')}/u"
+
+
+def setpoint(loop: str) -> str:
+    return f"ops/setpoint/{check_name(loop, 'loop')}"
+
+
+def setpoint_all() -> str:
+    return "ops/setpoint/*"

@@ -1,0 +1,185 @@
+"""Jacketed continuous stirred-tank reactor (JCSTR) of seed 000 (Taylor & Ibrahim), section III.
+
+States ``x = (H, T, T_j)`` (mixture level, mixture temperature, jacket temperature), control inputs
+``u = (F_out, F_jin)`` (mixture outflow, jacket inflow), exogenous inputs ``F_in, T_in, T_jin``
+held constant as parameters, outputs ``y = (H, T)``.
+
+Model, seed 000 eq. (1) written out as eq. (4)::
+
+    dH/dt   = (F_in - F_out) / A_B
+    dT/dt   = F_in (T_in - T) / (A_B H) + U A_H (T_j - T) / (rho C_p A_B H)
+    dT_j/dt = F_jin (T_jin - T_j) / V_j - U A_H (T_j - T) / (rho C_p V_j)
+    A_H     = A_B + pi D H
+
+Equilibrium for set points ``(H_bar, T_bar)``, seed 000 eq. (5)-(7), with ``alpha = U/(rho C_p)``::
+
+    u1_bar = F_in
+    x3_bar = T_bar + F_in (T_bar - T_in) / (alpha (A_B + pi D H_bar))      (6)
+    u2_bar = F_in (T_bar - T_in) / (T_jin - x3_bar)                        (7)
+
+Parameter values
+----------------
+The paper's values are in an internal memo (its ref. [9]) that is not public. The values in
+:data:`BENCHMARK_PARAMS` (and ``scenarios/jcstr_benchmark.yaml``) are **ours**: per-unit level and
+time as the paper uses, temperatures in degrees C. They were chosen so that the paper's initial
+state ``x0 = (0.66 pu, 50 C, 143 C)`` lies close to the equilibrium of the first set points
+(0.70 pu, 52 C), and then calibrated together with the PI gains (see ``bench/calibrate_jcstr.py``
+and the README) so that the benchmark of section III.C gives the paper's overshoots.
+
+Notes
+-----
+``U``, ``rho`` and ``C_p`` enter the model only through ``alpha = U / (rho C_p)`` (the jacket
+fluid is taken with the mixture's ``rho C_p``, as eq. (1) prints it).
+
+For robustness the temperature equation uses ``max(H, H_MIN)`` in its denominators, and the
+tank cannot drain below empty: a documented guard, inactive in every scenario we ship.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field
+
+if TYPE_CHECKING:
+    import control
+
+__all__ = ["JCSTRParams", "JCSTR", "BENCHMARK_PARAMS", "H_MIN"]
+
+H_MIN = 1e-3
+"""Smallest level (pu) used in the temperature equation's denominators."""
+
+
+class JCSTRParams(BaseModel):
+    """Physical parameters of the JCSTR, by the paper's symbol names (seed 000, eq. (1))."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    A_B: float = Field(gt=0, description="area of the tank base, pu^2 (level in pu)")
+    D: float = Field(gt=0, description="diameter of the tank base, pu")
+    U: float = Field(gt=0, description="overall heat-transfer coefficient, per-unit")
+    rho: float = Field(gt=0, description="mixture density, per-unit")
+    C_p: float = Field(gt=0, description="mixture heat capacity, per-unit")
+    V_j: float = Field(gt=0, description="jacket fluid volume, pu^3")
+    F_in: float = Field(ge=0, description="mixture inflow (exogenous), pu^3/pu time")
+    T_in: float = Field(description="mixture feed temperature (exogenous), degC")
+    T_jin: float = Field(description="jacket inflow temperature (exogenous), degC")
+
+
+class JCSTR:
+    """The JCSTR as a plant object: ``rhs``, ``outputs``, ``equilibrium``, ``linearize``."""
+
+    state_names: tuple[str, ...] = ("H", "T", "T_j")
+    input_names: tuple[str, ...] = ("F_out", "F_jin")
+    output_names: tuple[str, ...] = ("H", "T")
+
+    def __init__(self, params: JCSTRParams) -> None:
+        self.params = params
+        p = params
+        self._alpha = p.U / (p.rho * p.C_p)
+        self._pi_d = math.pi * p.D
+
+    # -- dynamics -------------------------------------------------------------------------------
+    def rhs(
+        self, t: float, x: NDArray[np.float64], u: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """Seed 000 eq. (4): time derivative of ``(H, T, T_j)`` under inputs ``(F_out, F_jin)``."""
+        p = self.params
+        h, temp, temp_j = x.tolist()
+        f_out, f_jin = u.tolist()
+        dh = (p.F_in - f_out) / p.A_B
+        if h <= 0.0 and dh < 0.0:
+            dh = 0.0  # an empty tank cannot drain further
+        h_eff = h if h > H_MIN else H_MIN
+        q = self._alpha * (p.A_B + self._pi_d * h_eff) * (temp_j - temp)  # U A_H (Tj-T)/(rho Cp)
+        d_temp = (p.F_in * (p.T_in - temp) + q) / (p.A_B * h_eff)
+        d_temp_j = (f_jin * (p.T_jin - temp_j) - q) / p.V_j
+        return np.array((dh, d_temp, d_temp_j))
+
+    def outputs(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Measured outputs ``(H, T)``."""
+        return np.array((x[0], x[1]), dtype=float)
+
+    # -- equilibrium ----------------------------------------------------------------------------
+    def equilibrium(
+        self, y_bar: Mapping[str, float]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """State and input that hold the outputs at ``y_bar`` (seed 000, eq. (5)-(7)).
+
+        Parameters
+        ----------
+        y_bar : mapping
+            Set points by output name: ``{"H": ..., "T": ...}``.
+
+        Returns
+        -------
+        x_bar, u_bar : ndarray
+            ``(H, T, T_j)`` and ``(F_out, F_jin)``.
+
+        Raises
+        ------
+        ValueError
+            If an output is missing or no positive jacket flow can hold the temperature.
+        """
+        missing = [n for n in self.output_names if n not in y_bar]
+        if missing:
+            raise ValueError(f"JCSTR.equilibrium: set points missing for outputs {missing}")
+        p = self.params
+        h_bar, t_bar = float(y_bar["H"]), float(y_bar["T"])
+        x3 = t_bar + p.F_in * (t_bar - p.T_in) / (self._alpha * (p.A_B + self._pi_d * h_bar))
+        if p.T_jin <= x3:
+            raise ValueError(
+                f"JCSTR.equilibrium: jacket inlet T_jin={p.T_jin} must exceed the required jacket "
+                f"temperature {x3:.3f} to hold T={t_bar}"
+            )
+        u2 = p.F_in * (t_bar - p.T_in) / (p.T_jin - x3)
+        return np.array((h_bar, t_bar, x3)), np.array((p.F_in, u2))
+
+    # -- linearization --------------------------------------------------------------------------
+    def jacobians(
+        self, x: NDArray[np.float64], u: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Analytic ``A = df/dx`` and ``B = df/du`` of eq. (4) at ``(x, u)`` (for ``H > H_MIN``)."""
+        p = self.params
+        h, temp, temp_j = (float(v) for v in x)
+        f_jin = float(u[1])
+        a, pd = self._alpha, self._pi_d
+        area = p.A_B + pd * h
+        dtemp = temp_j - temp
+        num = p.F_in * (p.T_in - temp) + a * area * dtemp  # d(T)/dt * A_B h
+        A = np.zeros((3, 3))
+        # dT/dt = num / (A_B h)
+        A[1, 0] = (a * pd * dtemp) / (p.A_B * h) - num / (p.A_B * h * h)
+        A[1, 1] = (-p.F_in - a * area) / (p.A_B * h)
+        A[1, 2] = a * area / (p.A_B * h)
+        # dTj/dt = (F_jin (T_jin - Tj) - a area dtemp) / V_j
+        A[2, 0] = -a * pd * dtemp / p.V_j
+        A[2, 1] = a * area / p.V_j
+        A[2, 2] = (-f_jin - a * area) / p.V_j
+        B = np.zeros((3, 2))
+        B[0, 0] = -1.0 / p.A_B
+        B[2, 1] = (p.T_jin - temp_j) / p.V_j
+        return A, B
+
+    def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
+        """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
+        import control  # imported here: nodes never linearize and control is slow to import
+
+        A, B = self.jacobians(x, u)
+        C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        return control.ss(
+            A, B, C, np.zeros((2, 2)),
+            states=list(self.state_names), inputs=list(self.input_names),
+            outputs=list(self.output_names),
+        )
+
+
+BENCHMARK_PARAMS = JCSTRParams(
+    A_B=1.0, D=1.1283791670955126, U=0.1, rho=1.0, C_p=1.0, V_j=0.2,
+    F_in=1.0, T_in=20.0, T_jin=200.0,
+)
+"""Our per-unit parameter set for the seed 000 benchmark (placeholder until calibrated)."""

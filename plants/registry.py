@@ -1,0 +1,28 @@
+"""Plant models by the name a scenario uses in ``model:``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel
+
+from plants.jcstr import JCSTR, JCSTRParams
+
+__all__ = ["MODELS", "build", "params_type"]
+
+MODELS: dict[str, tuple[type[Any], type[BaseModel]]] = {
+    "jcstr": (JCSTR, JCSTRParams),
+}
+
+
+def params_type(model: str) -> type[BaseModel]:
+    """The parameter model of plant ``model`` (``KeyError`` if unknown)."""
+    return MODELS[model][1]
+
+
+def build(model: str, params: BaseModel | dict) -> Any:
+    """A plant object of kind ``model`` from validated or raw parameters."""
+    cls, ptype = MODELS[model]
+    if not isinstance(params, ptype):
+        params = ptype.model_validate(params)
+    return cls(params)

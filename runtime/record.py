@@ -1,0 +1,131 @@
+"""What a run leaves behind, engine-independent: per-loop traces and per-plant true outputs.
+
+The ``direct`` engine fills a :class:`RunRecord` as it simulates; the bus engines rebuild one from
+``history.sqlite``. :func:`summarize` turns it into the ``summary.json`` contract.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from runtime.metrics import iae, step_metrics
+from runtime.time import to_units
+
+__all__ = ["LoopRecord", "PlantRecord", "RunRecord", "summarize", "loop_metrics"]
+
+
+@dataclass
+class LoopRecord:
+    """One loop: every delivered sample and the control move computed from it."""
+
+    plant: str
+    sensor: str
+    t: list[int] = field(default_factory=list)  # ticks of delivery = of the control move
+    y: list[float] = field(default_factory=list)
+    u: list[float] = field(default_factory=list)
+    t_sampled: list[int] = field(default_factory=list)
+    setpoints: list[tuple[int, float]] = field(default_factory=list)  # (ticks, value), from t=0
+
+
+@dataclass
+class PlantRecord:
+    """One plant's true state on its monitoring grid."""
+
+    state_names: tuple[str, ...]
+    t: list[int] = field(default_factory=list)
+    x: list[list[float]] = field(default_factory=list)
+
+    def signal(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(t_units, values)`` of one state variable."""
+        i = self.state_names.index(name)
+        return (
+            np.array([to_units(v) for v in self.t]),
+            np.array([row[i] for row in self.x], dtype=float),
+        )
+
+
+@dataclass
+class RunRecord:
+    scenario: str
+    seed: int
+    engine: str
+    end_time: int  # ticks
+    time_unit: str = "pu"
+    loops: dict[str, LoopRecord] = field(default_factory=dict)
+    plants: dict[str, PlantRecord] = field(default_factory=dict)
+    published: dict[str, int] = field(default_factory=dict)
+    dropped_invalid: dict[str, int] = field(default_factory=dict)
+    lost: int = 0
+    wall_s: float = 0.0
+    phases: dict[str, float] = field(default_factory=dict)
+
+
+def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
+    """Overshoot, settling time and IAE of loop ``name``, per step and overall."""
+    loop = rec.loops[name]
+    t, y = rec.plants[loop.plant].signal(loop.sensor)
+    end = to_units(rec.end_time)
+    changes = loop.setpoints
+    steps = []
+    for i in range(1, len(changes)):
+        (t_step, r_to), (_, r_from) = changes[i], changes[i - 1]
+        if r_to == r_from:
+            continue
+        t_next = to_units(changes[i + 1][0]) if i + 1 < len(changes) else end
+        m = step_metrics(t, y, t_step=to_units(t_step), t_end=t_next, r_from=r_from, r_to=r_to)
+        steps.append(
+            {
+                "t": m.t,
+                "from": m.r_from,
+                "to": m.r_to,
+                "overshoot_pct": m.overshoot_pct,
+                "settling_time": m.settling_time,
+                "iae": m.iae,
+            }
+        )
+    # set point as a function of time on the monitoring grid, for the whole-run IAE
+    r = np.empty_like(y)
+    grid = rec.plants[loop.plant].t
+    j = 0
+    for k, tk in enumerate(grid):
+        while j + 1 < len(changes) and changes[j + 1][0] <= tk:
+            j += 1
+        r[k] = changes[j][1]
+    settle = [s["settling_time"] for s in steps]
+    return {
+        "overshoot_pct": max((s["overshoot_pct"] for s in steps), default=None),
+        "settling_time": (None if not steps or any(v is None for v in settle) else max(settle)),
+        "iae": iae(t, y, r),
+        "steps": steps,
+    }
+
+
+def summarize(rec: RunRecord) -> dict[str, Any]:
+    """The ``summary.json`` contract of a run (see README, "Run artefacts")."""
+    loops = {}
+    for name, loop in sorted(rec.loops.items()):
+        entry = loop_metrics(rec, name)
+        entry["trace"] = {
+            "t": [to_units(v) for v in loop.t],
+            "y": list(loop.y),
+            "u": list(loop.u),
+        }
+        loops[name] = entry
+    return {
+        "scenario": rec.scenario,
+        "seed": rec.seed,
+        "engine": rec.engine,
+        "time_unit": rec.time_unit,
+        "end_time": to_units(rec.end_time),
+        "loops": loops,
+        "messages": {
+            "published": dict(sorted(rec.published.items())),
+            "dropped_invalid": dict(sorted(rec.dropped_invalid.items())),
+            "lost": rec.lost,
+        },
+        "wall_s": rec.wall_s,
+        "phases_s": rec.phases,
+    }

@@ -1,0 +1,355 @@
+"""Scenario files: the process graph, loops, set-point schedule and timing of one run.
+
+A scenario is YAML validated into :class:`Scenario` before anything starts; every problem
+becomes a :class:`~runtime.errors.ConfigError` naming the file and the dotted field
+(``scenarios/x.yaml: loops.level.tau_s: Input should be greater than 0``).
+
+Shape (see ``scenarios/jcstr_benchmark.yaml``)::
+
+    name, time_unit, end_time, seed, clock: {...}
+    nodes:    name -> {kind: plant | controller | network | operator, ...}
+    loops:    name -> {plant, sensor, actuator, controller, network, tau_s, tau_d, tau_a, setpoint}
+    setpoints: [{t, loop, value}, ...]
+
+Two node names are reserved and always present: ``clock`` and ``historian``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from bus_schemas import keys
+from controllers.pi import PIConfig
+from plants import registry
+from runtime.errors import ConfigError
+from runtime.time import to_ticks
+
+__all__ = [
+    "RESERVED_NODES",
+    "ClockConfig",
+    "PlantNodeConfig",
+    "ControllerNodeConfig",
+    "NetworkNodeConfig",
+    "OperatorNodeConfig",
+    "LoopConfig",
+    "SetpointChange",
+    "Scenario",
+    "load_scenario",
+    "parse_scenario",
+]
+
+RESERVED_NODES = ("clock", "historian")
+
+_STRICT = ConfigDict(frozen=True, extra="forbid")
+
+
+class ClockConfig(BaseModel):
+    """Wall-clock limits of the round protocol (DESIGN section 3)."""
+
+    model_config = _STRICT
+
+    round_timeout_s: float = Field(
+        default=10.0, gt=0, description="a participant silent this long in a round is a fault"
+    )
+    startup_timeout_s: float = Field(
+        default=120.0, gt=0, description="time for every participant to come alive"
+    )
+    max_microsteps: int = Field(
+        default=10_000, gt=0, description="rounds allowed at one instant before it is an error"
+    )
+
+
+class PlantNodeConfig(BaseModel):
+    """A plant simulator: integrates its model, samples its sensors, holds its inputs."""
+
+    model_config = _STRICT
+
+    kind: Literal["plant"]
+    model: str = Field(description="plant model name, one of plants.registry.MODELS")
+    params: dict[str, Any] = Field(description="the model's physical parameters by symbol")
+    x0: dict[str, float] = Field(description="initial state by state name")
+    u0: dict[str, float] = Field(description="inputs held until the first command arrives")
+    monitor_period: float = Field(
+        default=0.01, gt=0, description="period of the true-state record (plant/<p>/state)"
+    )
+    max_step: float = Field(default=0.005, gt=0, description="largest RK4 integration step")
+
+    @model_validator(mode="after")
+    def _check_model(self) -> PlantNodeConfig:
+        if self.model not in registry.MODELS:
+            raise ValueError(
+                f"model: unknown plant model {self.model!r} (known: {sorted(registry.MODELS)})"
+            )
+        try:
+            plant = registry.build(self.model, self.params)
+        except ValidationError as err:
+            e = err.errors()[0]
+            loc = ".".join(str(p) for p in e["loc"])
+            raise ValueError(f"params.{loc}: {e['msg']}") from err
+        for field, names, given in (
+            ("x0", plant.state_names, self.x0),
+            ("u0", plant.input_names, self.u0),
+        ):
+            if set(given) != set(names):
+                raise ValueError(
+                    f"{field}: expected exactly {list(names)}, got {sorted(given)}"
+                )
+        return self
+
+    def build(self) -> Any:
+        """The plant object."""
+        return registry.build(self.model, self.params)
+
+
+class ControllerNodeConfig(BaseModel):
+    """A controller of one loop."""
+
+    model_config = _STRICT
+
+    kind: Literal["controller"]
+    loop: str
+    law: Annotated[PIConfig, Field(discriminator="type")]
+
+
+class NetworkNodeConfig(BaseModel):
+    """A network that carries the loops naming it, with each loop's constant path delays.
+
+    The wireless gateway emulator (multi-hop delays, loss, energy) replaces this node kind; a
+    ``network`` node is a wired fieldbus with fixed latency ``tau_d`` (sensor path) and
+    ``tau_a`` (actuator path) per loop.
+    """
+
+    model_config = _STRICT
+
+    kind: Literal["network"]
+
+
+class OperatorNodeConfig(BaseModel):
+    """Publishes the scenario's set-point schedule on ``ops/setpoint/<loop>``."""
+
+    model_config = _STRICT
+
+    kind: Literal["operator"]
+
+
+NodeConfig = Annotated[
+    PlantNodeConfig | ControllerNodeConfig | NetworkNodeConfig | OperatorNodeConfig,
+    Field(discriminator="kind"),
+]
+
+
+class LoopConfig(BaseModel):
+    """One control loop: which plant signal it measures, which input it moves, and its timing."""
+
+    model_config = _STRICT
+
+    plant: str
+    sensor: str = Field(description="plant output measured by the loop's sensor")
+    actuator: str = Field(description="plant input moved by the loop's controller")
+    controller: str = Field(description="name of the controller node")
+    network: str | None = Field(
+        default=None, description="node carrying the loop's paths; None = wired, zero delay"
+    )
+    tau_s: float = Field(gt=0, description="sampling period of the loop's sensor")
+    tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
+    tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
+    setpoint: float = Field(description="set point at t = 0")
+
+
+class SetpointChange(BaseModel):
+    """A scheduled set-point change."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0)
+    loop: str
+    value: float
+
+
+class Scenario(BaseModel):
+    """A whole run: process graph, loops, schedule and end time."""
+
+    model_config = _STRICT
+
+    name: str
+    time_unit: str = "pu"
+    end_time: float = Field(gt=0)
+    seed: int = Field(default=0, ge=0)
+    clock: ClockConfig = ClockConfig()
+    nodes: dict[str, NodeConfig]
+    loops: dict[str, LoopConfig]
+    setpoints: list[SetpointChange] = []
+
+    @field_validator("nodes")
+    @classmethod
+    def _node_names(cls, nodes: dict[str, Any]) -> dict[str, Any]:
+        for name in nodes:
+            keys.check_name(name, "node name")
+            if name in RESERVED_NODES:
+                raise ValueError(f"{name!r} is a reserved node name ({RESERVED_NODES})")
+        return nodes
+
+    @field_validator("loops")
+    @classmethod
+    def _loop_names(cls, loops: dict[str, Any]) -> dict[str, Any]:
+        for name in loops:
+            keys.check_name(name, "loop name")
+        return loops
+
+    @model_validator(mode="after")
+    def _check_graph(self) -> Scenario:
+        def node_of(kind: str, name: str, where: str) -> Any:
+            node = self.nodes.get(name)
+            if node is None:
+                raise ValueError(f"{where}: unknown node {name!r} (nodes: {sorted(self.nodes)})")
+            if node.kind != kind:
+                raise ValueError(f"{where}: node {name!r} is a {node.kind}, expected a {kind}")
+            return node
+
+        controlled: dict[str, str] = {}
+        for lname, loop in self.loops.items():
+            at = f"loops.{lname}"
+            plant_cfg = node_of("plant", loop.plant, f"{at}.plant")
+            plant = plant_cfg.build()
+            if loop.sensor not in plant.output_names:
+                raise ValueError(
+                    f"{at}.sensor: plant {loop.plant!r} has no output {loop.sensor!r} "
+                    f"(outputs: {list(plant.output_names)})"
+                )
+            if loop.actuator not in plant.input_names:
+                raise ValueError(
+                    f"{at}.actuator: plant {loop.plant!r} has no input {loop.actuator!r} "
+                    f"(inputs: {list(plant.input_names)})"
+                )
+            ctrl = node_of("controller", loop.controller, f"{at}.controller")
+            if ctrl.loop != lname:
+                raise ValueError(
+                    f"{at}.controller: node {loop.controller!r} controls loop {ctrl.loop!r}"
+                )
+            if loop.controller in controlled:
+                raise ValueError(f"{at}.controller: {loop.controller!r} already controls "
+                                 f"loop {controlled[loop.controller]!r}")
+            controlled[loop.controller] = lname
+            if loop.network is None:
+                if loop.tau_d or loop.tau_a:
+                    raise ValueError(f"{at}: tau_d/tau_a need a network node carrying the loop")
+            else:
+                node_of("network", loop.network, f"{at}.network")
+            if to_ticks(loop.tau_s) < 1:
+                raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
+        for name, node in self.nodes.items():
+            if node.kind == "controller" and name not in controlled:
+                raise ValueError(f"nodes.{name}.loop: no loop names {name!r} as its controller")
+        operators = [n for n, node in self.nodes.items() if node.kind == "operator"]
+        if len(operators) > 1:
+            raise ValueError(f"nodes: at most one operator node, found {operators}")
+        if self.setpoints and not operators:
+            raise ValueError("setpoints: a schedule needs an operator node to publish it")
+        for i, change in enumerate(self.setpoints):
+            if change.loop not in self.loops:
+                raise ValueError(
+                    f"setpoints[{i}].loop: unknown loop {change.loop!r} "
+                    f"(loops: {sorted(self.loops)})"
+                )
+            if change.t > self.end_time:
+                raise ValueError(f"setpoints[{i}].t: {change.t} is after end_time {self.end_time}")
+        self._check_feedforward()
+        return self
+
+    def _check_feedforward(self) -> None:
+        """Every steady-state feedforward must be computable at every scheduled set point."""
+        current = {name: loop.setpoint for name, loop in self.loops.items()}
+        schedule = [None, *sorted(self.setpoints, key=lambda c: c.t)]
+        for change in schedule:
+            if change is not None:
+                current[change.loop] = change.value
+            for lname, loop in self.loops.items():
+                ctrl = self.nodes[loop.controller]
+                if ctrl.law.feedforward != "steady_state":
+                    continue
+                try:
+                    self.feedforward(lname).u_bar(self.plant_setpoints(loop.plant, current))
+                except ValueError as err:
+                    raise ValueError(f"loops.{lname}: feedforward: {err}") from err
+
+    # -- derived views used by nodes and engines --------------------------------------------------
+    def loops_of_plant(self, plant: str) -> dict[str, LoopConfig]:
+        """The loops measuring or moving plant ``plant``, by name (sorted)."""
+        return {n: lp for n, lp in sorted(self.loops.items()) if lp.plant == plant}
+
+    def plant_setpoints(self, plant: str, setpoints: Mapping[str, float]) -> dict[str, float]:
+        """The subset of loop set points that belong to ``plant``'s loops."""
+        return {n: setpoints[n] for n in self.loops_of_plant(plant)}
+
+    def feedforward(self, loop: str) -> Any:
+        """The steady-state feedforward object of ``loop`` (seed 000, eq. (5)-(7))."""
+        from controllers.feedforward import SteadyStateFeedforward
+
+        lp = self.loops[loop]
+        plant = self.nodes[lp.plant].build()
+        outputs = {n: other.sensor for n, other in self.loops_of_plant(lp.plant).items()}
+        return SteadyStateFeedforward(plant, outputs, lp.actuator)
+
+    def participants(self) -> list[str]:
+        """Every node that takes part in clock rounds: the scenario's nodes and the historian."""
+        return sorted([*self.nodes, "historian"])
+
+    def with_loops(
+        self,
+        *,
+        tau_s: Mapping[str, float] | None = None,
+        tau_d: Mapping[str, float] | None = None,
+    ) -> Scenario:
+        """A copy with some loops' ``tau_s`` / ``tau_d`` replaced (validated again)."""
+        data = self.model_dump()
+        for field, values in (("tau_s", tau_s), ("tau_d", tau_d)):
+            for name, value in (values or {}).items():
+                if name not in data["loops"]:
+                    raise ValueError(f"with_loops: unknown loop {name!r}")
+                data["loops"][name][field] = value
+        return Scenario.model_validate(data)
+
+
+def _format_error(source: str, err: ValidationError) -> str:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"])
+        msg = e["msg"].removeprefix("Value error, ")
+        lines.append(f"{source}: {loc + ': ' if loc else ''}{msg}")
+    return "\n".join(lines)
+
+
+def parse_scenario(data: Any, *, source: str = "<scenario>") -> Scenario:
+    """Validate an already-parsed mapping; errors name ``source`` and the field."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_error(source, err)) from err
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read, is not YAML, or does not validate; the message names the file
+        and the dotted field.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read scenario: {err.strerror or err}") from err
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML: {err}") from err
+    return parse_scenario(data, source=str(path))
