@@ -15,7 +15,7 @@ from pydantic import BaseModel, ValidationError
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope, RawEnvelope
 from runtime.errors import SchemaError
 
-__all__ = ["ENCODING", "encode", "pack_body", "decode_envelope", "decode_body", "decode"]
+__all__ = ["ENCODING", "encode", "pack_body", "pack_mapping", "unpack_mapping", "decode_envelope", "decode_body", "decode"]
 
 ENCODING = "application/msgpack"
 
@@ -25,6 +25,16 @@ BodyT = TypeVar("BodyT", bound=BaseModel)
 def pack_body(body: BaseModel) -> bytes:
     """The msgpack bytes of a body alone (the historian stores bodies without envelopes)."""
     return msgpack.packb(body.model_dump(mode="python"), use_bin_type=True)
+
+
+def pack_mapping(body: dict) -> bytes:
+    """The msgpack bytes of an unvalidated body mapping (as the historian stores it)."""
+    return msgpack.packb(body, use_bin_type=True)
+
+
+def unpack_mapping(raw: bytes) -> dict:
+    """Inverse of :func:`pack_mapping`."""
+    return msgpack.unpackb(raw, raw=False)
 
 
 def encode(

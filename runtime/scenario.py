@@ -152,9 +152,7 @@ class LoopConfig(BaseModel):
     sensor: str = Field(description="plant output measured by the loop's sensor")
     actuator: str = Field(description="plant input moved by the loop's controller")
     controller: str = Field(description="name of the controller node")
-    network: str | None = Field(
-        default=None, description="node carrying the loop's paths; None = wired, zero delay"
-    )
+    network: str = Field(description="network node carrying the loop's sensor and actuator paths")
     tau_s: float = Field(gt=0, description="sampling period of the loop's sensor")
     tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
     tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
@@ -235,11 +233,7 @@ class Scenario(BaseModel):
                 raise ValueError(f"{at}.controller: {loop.controller!r} already controls "
                                  f"loop {controlled[loop.controller]!r}")
             controlled[loop.controller] = lname
-            if loop.network is None:
-                if loop.tau_d or loop.tau_a:
-                    raise ValueError(f"{at}: tau_d/tau_a need a network node carrying the loop")
-            else:
-                node_of("network", loop.network, f"{at}.network")
+            node_of("network", loop.network, f"{at}.network")
             if to_ticks(loop.tau_s) < 1:
                 raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
         for name, node in self.nodes.items():

@@ -1,0 +1,58 @@
+"""The controller node: runs one loop's control law on the bus.
+
+It computes a move for every sample delivered on ``loop/<l>/meas`` with the set points current at
+that instant, and publishes it on ``loop/<l>/u``. Set points of all loops of the plant are followed
+(``ops/setpoint/<loop>``), because the steady-state feedforward of one input depends on all of them
+(seed 000, eq. (5)-(7)).
+"""
+
+from __future__ import annotations
+
+from bus_schemas import Move, Sample, Setpoint, keys
+from bus_schemas.envelope import RawEnvelope
+from controllers.pi import PI
+from runtime.node import Node, NodeContext
+from runtime.time import to_units
+
+__all__ = ["ControllerNode"]
+
+
+class ControllerNode(Node):
+    def __init__(self, ctx: NodeContext) -> None:
+        super().__init__(ctx)
+        cfg = self.scenario.nodes[self.name]
+        self.loop = cfg.loop
+        loop = self.scenario.loops[self.loop]
+        self.plant = loop.plant
+        self.setpoints = {n: lp.setpoint for n, lp in self.scenario.loops_of_plant(loop.plant).items()}
+        self.feedforward = (
+            self.scenario.feedforward(self.loop) if cfg.law.feedforward == "steady_state" else None
+        )
+        self.law = PI(cfg.law, u_bar=self._u_bar())
+        self._samples: list[Sample] = []
+        self._setpoints_changed = False
+        self.subscribe(keys.meas(self.loop), Sample, self._on_meas)
+        for name in self.setpoints:
+            self.subscribe(keys.setpoint(name), Setpoint, self._on_setpoint(name))
+
+    def _u_bar(self) -> float:
+        return self.feedforward.u_bar(self.setpoints) if self.feedforward is not None else 0.0
+
+    def _on_meas(self, env: RawEnvelope, sample: Sample) -> None:
+        self._samples.append(sample)
+
+    def _on_setpoint(self, loop: str):  # noqa: ANN202
+        def handle(env: RawEnvelope, sp: Setpoint) -> None:
+            self.setpoints[loop] = sp.value
+            self._setpoints_changed = True
+
+        return handle
+
+    def after_dispatch(self) -> None:
+        if self._setpoints_changed:
+            self.law.set_feedforward(self._u_bar())
+            self._setpoints_changed = False
+        for sample in self._samples:
+            u = self.law.step(to_units(self.now), sample.value, self.setpoints[self.loop])
+            self.publish(keys.move(self.loop), Move(value=u, t_computed=self.now))
+        self._samples.clear()

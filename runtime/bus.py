@@ -1,0 +1,81 @@
+"""Zenoh session configuration: the embedded router and the nodes' client sessions.
+
+One function turns a :class:`BusConfig` into a ``zenoh.Config`` (zenoh-python's ``common.py``
+recipe: JSON5 paths, plus raw ``KEY:VALUE`` overrides). Multicast scouting is off: every session
+connects to an explicit endpoint, by default a router on the loopback interface.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Literal
+
+import zenoh
+from pydantic import BaseModel, ConfigDict
+
+from runtime.errors import ConfigError
+
+__all__ = ["BusConfig", "DEFAULT_LISTEN", "zenoh_config", "open_router", "open_client"]
+
+DEFAULT_LISTEN = "tcp/127.0.0.1:0"
+"""Loopback, port chosen by the OS (read back from the router's admin space)."""
+
+_LOG_INIT = False
+
+
+def _init_log() -> None:
+    global _LOG_INIT
+    if not _LOG_INIT:
+        zenoh.init_log_from_env_or("error")
+        _LOG_INIT = True
+
+
+class BusConfig(BaseModel):
+    """How one session joins the bus."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    mode: Literal["router", "client", "peer"] = "client"
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    multicast_scouting: bool = False
+    overrides: tuple[str, ...] = ()  # raw "json5/path:VALUE" entries, applied last
+
+
+def zenoh_config(cfg: BusConfig) -> zenoh.Config:
+    """Build the ``zenoh.Config`` of ``cfg``."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(cfg.mode))
+    if cfg.listen:
+        conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
+    if cfg.connect:
+        conf.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
+    if cfg.mode == "router":
+        conf.insert_json5("adminspace/enabled", "true")
+    for item in cfg.overrides:
+        path, sep, value = item.partition(":")
+        if not sep:
+            raise ConfigError(f"bus override {item!r}: expected KEY:VALUE")
+        conf.insert_json5(path, value)
+    return conf
+
+
+def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]:
+    """Open an embedded router listening on ``listen``; return it and its actual locators."""
+    _init_log()
+    session = zenoh.open(zenoh_config(BusConfig(mode="router", listen=(listen,))))
+    locators: list[str] = []
+    for reply in session.get(f"@/{session.info.zid()}/router"):
+        if reply.ok is not None:
+            locators = json.loads(reply.ok.payload.to_string()).get("locators", [])
+    if not locators:
+        session.close()
+        raise ConfigError(f"router on {listen!r} reports no locator")
+    return session, locators
+
+
+def open_client(connect: str) -> zenoh.Session:
+    """Open a client session connected to the router at ``connect``."""
+    _init_log()
+    return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))

@@ -1,0 +1,178 @@
+"""The ``wncs`` command line.
+
+``wncs run SCENARIO --out DIR``        run a scenario (engines: processes, threads, direct)
+``wncs node SCENARIO NAME --connect EP --run-id ID``   run one node of the graph (or ``clock``)
+``wncs report DIR``                    redraw a run's plots and print its figures
+
+Exit codes: 0 success, 2 bad input (scenario, arguments), 3 the run was stopped by a fault,
+1 any other failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+from runtime.errors import ConfigError, WncsError
+
+__all__ = ["main", "build_parser"]
+
+log = logging.getLogger("wncs")
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="wncs", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="run a scenario and write its artefacts to DIR")
+    run.add_argument("scenario", help="scenario YAML file")
+    run.add_argument("--out", required=True, help="output directory")
+    run.add_argument("--engine", choices=("processes", "threads", "direct"), default="processes")
+    run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    run.add_argument("--listen", default=None,
+                     help="endpoint of the embedded router (default tcp/127.0.0.1:0)")
+    run.add_argument("--realtime", type=_positive_float, default=None,
+                     metavar="SECONDS_PER_UNIT", help="pace virtual time against the wall clock")
+    run.add_argument("--quiet", action="store_true", help="print only errors")
+
+    node = sub.add_parser("node", help="run one node of a scenario's graph")
+    node.add_argument("scenario")
+    node.add_argument("name", help="node name, or 'clock' / 'historian'")
+    node.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
+    node.add_argument("--run-id", required=True)
+    node.add_argument("--seed", type=int, default=None)
+    node.add_argument("--out", default=".", help="historian: directory of history.sqlite")
+    node.add_argument("--engine", default="processes", help="historian: engine recorded in meta")
+    node.add_argument("--realtime", type=_positive_float, default=None,
+                      metavar="SECONDS_PER_UNIT", help="clock: real-time pacing")
+
+    report = sub.add_parser("report", help="redraw a run's plots and print its figures")
+    report.add_argument("dir")
+    return parser
+
+
+def _table(summary: dict[str, Any]) -> str:
+    unit = summary.get("time_unit", "")
+    rows = [f"{'loop':<14}{'overshoot %':>12}{'settling ' + unit:>14}{'IAE':>12}"]
+    for name, lp in summary["loops"].items():
+        os_ = lp["overshoot_pct"]
+        st = lp["settling_time"]
+        rows.append(
+            f"{name:<14}{'-' if os_ is None else f'{os_:.2f}':>12}"
+            f"{'not settled' if st is None else f'{st:.3f}':>14}{lp['iae']:>12.4g}"
+        )
+    return "\n".join(rows)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from runtime.launcher import launch
+
+    stream = sys.stdout if (sys.stdout.isatty() and not args.quiet) else None
+    result = launch(
+        args.scenario, args.out, engine=args.engine, seed=args.seed, listen=args.listen,
+        realtime=args.realtime, progress=stream,
+    )
+    if result.code != 0:
+        print(f"wncs run: {result.error}", file=sys.stderr)
+        return result.code
+    if not args.quiet:
+        s = result.summary
+        print(f"{s['scenario']} ({s['engine']} engine, seed {s['seed']}): "
+              f"{s['end_time']:g} {s['time_unit']} in {s['wall_s']:.2f} s wall time")
+        print(_table(s))
+        print(f"artefacts in {Path(args.out).resolve()}: summary.json, "
+              + ", ".join(f"{n}.png" for n in s["loops"]))
+    return 0
+
+
+def _cmd_node(args: argparse.Namespace) -> int:
+    from runtime.bus import open_client
+    from runtime.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        scenario = scenario.model_copy(update={"seed": args.seed})
+    if args.name != "clock":
+        from runtime.nodes import node_class
+
+        try:
+            cls = node_class(scenario, args.name)
+        except KeyError as err:
+            raise ConfigError(str(err.args[0])) from err
+    session = open_client(args.connect)
+    try:
+        if args.name == "clock":
+            from runtime.clock import ClockRunner
+
+            return ClockRunner(session, args.run_id, scenario, realtime=args.realtime).run()
+        from runtime.node import NodeContext
+
+        ctx = NodeContext(args.name, args.run_id, scenario, session,
+                          {"out": args.out, "engine": args.engine})
+        return cls(ctx).run()
+    finally:
+        session.close()
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from runtime.launcher import RUN_FILE, SCENARIO_FILE
+    from runtime.report import load_saved_record, write_plots, write_summary
+    from runtime.scenario import load_scenario
+
+    out = Path(args.dir)
+    try:
+        info = json.loads((out / RUN_FILE).read_text())
+    except (OSError, ValueError) as err:
+        raise ConfigError(f"{out / RUN_FILE}: not a run directory ({err})") from err
+    scenario = load_scenario(out / SCENARIO_FILE)
+    if (out / "history.sqlite").exists():
+        from runtime.history import load_record
+
+        rec = load_record(out / "history.sqlite", scenario, engine=info["engine"])
+    else:
+        rec = load_saved_record(out)
+    old = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
+    rec.wall_s = old.get("wall_s", 0.0)
+    rec.phases = old.get("phases_s", {})
+    if (out / "history.sqlite").exists() and "messages" in old:
+        rec.dropped_invalid = old["messages"].get("dropped_invalid", {})
+    summary = write_summary(rec, out)
+    paths = write_plots(rec, out)
+    print(_table(summary))
+    print("plots: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.INFO if args.command == "node" else logging.WARNING
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return {"run": _cmd_run, "node": _cmd_node, "report": _cmd_report}[args.command](args)
+    except ConfigError as err:
+        print(f"wncs {args.command}: {err}", file=sys.stderr)
+        return 2
+    except WncsError as err:
+        print(f"wncs {args.command}: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

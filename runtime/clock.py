@@ -1,0 +1,286 @@
+"""The clock: conservative round synchronisation in virtual time (DESIGN section 3).
+
+:class:`RoundPlanner` is the pure logic (which round and time come next, given every
+participant's ``Done``); :class:`Pacer` waits for the wall clock in real-time mode;
+:class:`ClockRunner` drives both on the bus, watches liveliness and timeouts, and ends the run
+with a ``Stop`` naming the node and the round of any fault.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import time
+from collections.abc import Iterable, Mapping
+
+import zenoh
+
+from bus_schemas import Done, Stop, Tick, codec, keys
+from runtime.errors import NodeFault, ProtocolError, SchemaError
+from runtime.scenario import Scenario
+from runtime.time import TICKS_PER_UNIT, to_ticks, to_units
+
+__all__ = ["RoundPlanner", "Pacer", "ClockRunner"]
+
+log = logging.getLogger(__name__)
+
+
+class RoundPlanner:
+    """Which round comes next.
+
+    A round that published anything is followed by a microstep at the same time; otherwise time
+    jumps to the earliest ``next_time`` any participant reported (next-event advance). The run
+    ends when that time is past ``end`` (ticks) or no participant has anything pending.
+    """
+
+    def __init__(self, participants: Iterable[str], end: int, *, max_microsteps: int) -> None:
+        self.participants = frozenset(participants)
+        self.end = end
+        self.max_microsteps = max_microsteps
+        self.round = 0
+        self.t = 0
+        self.expected: dict[str, int] = {}
+        self.microsteps = 0
+        self.finished = False
+
+    def tick(self) -> Tick:
+        return Tick(round=self.round, t=self.t, expected=dict(sorted(self.expected.items())))
+
+    def advance(self, dones: Mapping[str, Done]) -> None:
+        """Digest every participant's ``Done`` of the current round."""
+        missing = self.participants - set(dones)
+        if missing:
+            raise ProtocolError(f"round {self.round}: no Done from {sorted(missing)}")
+        published: dict[str, int] = {}
+        for done in dones.values():
+            if done.round != self.round:
+                raise ProtocolError(f"{done.node}: Done of round {done.round} in {self.round}")
+            for key, n in done.published.items():
+                published[key] = published.get(key, 0) + n
+        if published:
+            self.microsteps += 1
+            if self.microsteps > self.max_microsteps:
+                raise ProtocolError(
+                    f"round {self.round}: more than {self.max_microsteps} microsteps at "
+                    f"t = {to_units(self.t)} (a zero-delay cycle?)"
+                )
+        else:
+            pending = [d.next_time for d in dones.values() if d.next_time is not None]
+            nxt = min(pending) if pending else None
+            if nxt is None or nxt > self.end:
+                self.finished = True
+                return
+            if nxt <= self.t:
+                late = sorted(d.node for d in dones.values() if d.next_time == nxt)
+                raise ProtocolError(f"round {self.round}: {late} report next_time {nxt} <= {self.t}")
+            self.t = nxt
+            self.microsteps = 0
+        self.round += 1
+        self.expected = published
+
+
+class Pacer:
+    """Real-time pacing: virtual time ``t`` is due at ``start + t * seconds_per_unit`` (monotonic).
+
+    Like simpy's ``RealtimeEnvironment``, it only paces the same loop; with ``strict`` a lag of
+    more than one ``seconds_per_unit`` raises instead of being logged.
+    """
+
+    def __init__(self, seconds_per_unit: float, *, strict: bool = False) -> None:
+        self.seconds_per_unit = seconds_per_unit
+        self.strict = strict
+        self.start = time.monotonic()
+        self.max_lag = 0.0
+
+    def delay(self, t: int) -> float:
+        """Wall seconds to wait before time ``t`` (ticks) may begin; negative when late."""
+        target = self.start + t / TICKS_PER_UNIT * self.seconds_per_unit
+        lag = time.monotonic() - target
+        if lag > self.max_lag:
+            self.max_lag = lag
+            if lag > 0.05 * self.seconds_per_unit:
+                if self.strict and lag > self.seconds_per_unit:
+                    raise ProtocolError(f"simulation too slow for real time: {lag:.3f} s behind")
+                log.warning("real time: %.3f s behind at t = %.6f", lag, to_units(t))
+        return -lag
+
+
+class ClockRunner:
+    """Drives the rounds of one run over a zenoh session."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        run_id: str,
+        scenario: Scenario,
+        *,
+        realtime: float | None = None,
+    ) -> None:
+        self.session = session
+        self.run_id = run_id
+        self.scenario = scenario
+        self.participants = frozenset(scenario.participants())
+        self.planner = RoundPlanner(
+            self.participants, to_ticks(scenario.end_time),
+            max_microsteps=scenario.clock.max_microsteps,
+        )
+        self.pacer = Pacer(realtime) if realtime else None
+        self._queue: queue.Queue[tuple[str, str, bytes | zenoh.SampleKind]] = queue.Queue()
+        self._alive: set[str] = set()
+        self._seq = 0
+        self.dropped_invalid: dict[str, dict[str, int]] = {}
+        self.error: str | None = None
+
+    # -- bus plumbing ----------------------------------------------------------------------------
+    def _full(self, rel: str) -> str:
+        return keys.full(self.run_id, rel)
+
+    def _publish(self, rel: str, body: Tick | Stop) -> None:
+        payload = codec.encode(
+            run=self.run_id, src="clock", seq=self._seq, round=self.planner.round,
+            t=self.planner.t, body=body,
+        )
+        self._seq += 1
+        self.session.put(
+            self._full(rel), payload, encoding=zenoh.Encoding(codec.ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK, express=True,
+        )
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        self._queue.put(("alive", name, sample.kind))
+
+    def _on_done(self, sample: zenoh.Sample) -> None:
+        self._queue.put(("done", str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _handle_alive(self, name: str, kind: zenoh.SampleKind) -> None:
+        if kind == zenoh.SampleKind.PUT:
+            self._alive.add(name)
+            return
+        self._alive.discard(name)
+        if name in self.participants and not self.planner.finished:
+            raise NodeFault(
+                f"node {name!r} left the run during round {self.planner.round} "
+                f"(t = {to_units(self.planner.t):.6f} {self.scenario.time_unit})"
+            )
+
+    # -- the run ---------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Run to the end; 0 on success, 3 when a fault stopped the run (see :attr:`error`)."""
+        live = self.session.liveliness()
+        token = live.declare_token(self._full(keys.alive("clock")))
+        subs = [
+            live.declare_subscriber(self._full(keys.alive_all()), self._on_alive, history=True),
+            self.session.declare_subscriber(self._full(keys.done_all()), self._on_done),
+        ]
+        try:
+            try:
+                self._wait_for_participants()
+                self._rounds()
+                self._publish(keys.stop(), self._stop(ok=True))
+                log.info("run finished at round %d", self.planner.round)
+                code = 0
+            except (NodeFault, ProtocolError, TimeoutError) as err:
+                self.error = str(err)
+                log.error("%s", err)
+                self._publish(keys.stop(), self._stop(ok=False, reason=str(err)))
+                code = 3
+            self._wait_for_exit(timeout=self.scenario.clock.round_timeout_s)
+            return code
+        finally:
+            for s in subs:
+                s.undeclare()
+            token.undeclare()
+
+    def _stop(self, *, ok: bool, reason: str = "") -> Stop:
+        merged: dict[str, int] = {}
+        for counts in self.dropped_invalid.values():
+            for key, n in counts.items():
+                merged[key] = max(merged.get(key, 0), n)  # each subscriber sees every message
+        return Stop(
+            ok=ok, reason=reason, round=self.planner.round, t=self.planner.t,
+            dropped_invalid=dict(sorted(merged.items())),
+        )
+
+    def _next(self, timeout: float) -> tuple[str, str, bytes | zenoh.SampleKind] | None:
+        try:
+            return self._queue.get(timeout=max(timeout, 0.0))
+        except queue.Empty:
+            return None
+
+    def _wait_for_participants(self) -> None:
+        deadline = time.monotonic() + self.scenario.clock.startup_timeout_s
+        while not self.participants <= self._alive:
+            item = self._next(deadline - time.monotonic())
+            if item is None:
+                missing = sorted(self.participants - self._alive)
+                raise NodeFault(
+                    f"nodes {missing} did not come alive within "
+                    f"{self.scenario.clock.startup_timeout_s} s"
+                )
+            if item[0] == "alive":
+                self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
+        if self.pacer is not None:
+            self.pacer.start = time.monotonic()
+
+    def _rounds(self) -> None:
+        timeout = self.scenario.clock.round_timeout_s
+        planner = self.planner
+        while True:
+            tick = planner.tick()
+            self._publish(keys.tick(), tick)
+            dones: dict[str, Done] = {}
+            deadline = time.monotonic() + timeout
+            while len(dones) < len(self.participants):
+                item = self._next(deadline - time.monotonic())
+                if item is None:
+                    silent = sorted(self.participants - set(dones))
+                    raise NodeFault(
+                        f"node(s) {silent} did not answer round {tick.round} "
+                        f"(t = {to_units(tick.t):.6f} {self.scenario.time_unit}) within {timeout} s"
+                    )
+                kind, key, payload = item
+                if kind == "alive":
+                    self._handle_alive(key, payload)  # type: ignore[arg-type]
+                    continue
+                try:
+                    env = codec.decode_envelope(payload)  # type: ignore[arg-type]
+                    done = codec.decode_body(env, Done)
+                except SchemaError as err:
+                    log.warning("clock: dropping invalid Done on %s: %s", key, err)
+                    continue
+                if done.node not in self.participants or env.src != done.node:
+                    log.warning("clock: Done from unknown node %r ignored", done.node)
+                    continue
+                if done.round != tick.round:
+                    continue
+                dones[done.node] = done
+                self.dropped_invalid[done.node] = done.dropped_invalid
+            t_before = planner.t
+            planner.advance(dones)
+            if planner.finished:
+                return
+            if self.pacer is not None and planner.t > t_before:
+                self._pace(planner.t)
+
+    def _pace(self, t: int) -> None:
+        """Wait until ``t`` is due in wall time, still watching for faults."""
+        assert self.pacer is not None
+        while (wait := self.pacer.delay(t)) > 0:
+            item = self._next(wait)
+            if item is not None and item[0] == "alive":
+                self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
+
+    def _wait_for_exit(self, timeout: float) -> None:
+        """Give the participants time to see the Stop and leave (the historian flushes)."""
+        deadline = time.monotonic() + timeout
+        while self._alive & self.participants:
+            item = self._next(deadline - time.monotonic())
+            if item is None:
+                return
+            if item[0] == "alive":
+                name, kind = item[1], item[2]
+                if kind == zenoh.SampleKind.DELETE:
+                    self._alive.discard(name)  # type: ignore[arg-type]
+                else:
+                    self._alive.add(name)  # type: ignore[arg-type]

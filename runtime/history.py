@@ -1,0 +1,111 @@
+"""The run's history database (SQLite in WAL mode): schema, reading, digest.
+
+Tables (keys are run-relative, so histories of two runs compare equal when their messages do):
+
+``meta(name, value)``
+    run id, scenario, seed, engine, the clock's stop message (JSON).
+``ticks(round, t, expected)``
+    every clock round: time in ticks and the expected counts (JSON).
+``messages(id, round, t, key, src, seq, body)``
+    every data message of the run, in the deterministic order the historian handled them
+    (round, then key, source, sequence); ``body`` is the msgpack body.
+
+The historian node writes it; :func:`load_record` rebuilds an engine-independent
+:class:`~runtime.record.RunRecord` from it, and :func:`messages_digest` hashes the message table.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+from bus_schemas import codec
+from runtime.record import LoopRecord, PlantRecord, RunRecord
+from runtime.scenario import Scenario
+
+__all__ = ["SCHEMA", "connect", "messages_digest", "load_record", "read_meta"]
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (name TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS ticks (round INTEGER PRIMARY KEY, t INTEGER NOT NULL,
+                                  expected TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS messages (id INTEGER PRIMARY KEY, round INTEGER NOT NULL,
+                                     t INTEGER NOT NULL, key TEXT NOT NULL, src TEXT NOT NULL,
+                                     seq INTEGER NOT NULL, body BLOB NOT NULL);
+CREATE INDEX IF NOT EXISTS messages_key ON messages (key);
+"""
+
+
+def connect(path: str | Path, *, create: bool = False) -> sqlite3.Connection:
+    """Open a history database (WAL mode); ``create`` makes the tables."""
+    path = Path(path)
+    if not create and not path.exists():
+        raise FileNotFoundError(f"{path}: no history database")
+    conn = sqlite3.connect(path)
+    conn.execute("PRAGMA journal_mode=WAL")
+    conn.execute("PRAGMA synchronous=NORMAL")
+    if create:
+        conn.executescript(SCHEMA)
+    return conn
+
+
+def read_meta(path: str | Path) -> dict[str, Any]:
+    """The ``meta`` table as a dict (JSON values decoded)."""
+    with connect(path) as conn:
+        return {name: json.loads(value) for name, value in conn.execute("SELECT * FROM meta")}
+
+
+def messages_digest(path: str | Path) -> str:
+    """SHA-256 of the message table, row by row in id order (no run id in it)."""
+    h = hashlib.sha256()
+    with connect(path) as conn:
+        rows = conn.execute("SELECT round, t, key, src, seq, body FROM messages ORDER BY id")
+        for rnd, t, key, src, seq, body in rows:
+            h.update(f"{rnd}|{t}|{key}|{src}|{seq}|".encode())
+            h.update(body)
+            h.update(b"\n")
+    return h.hexdigest()
+
+
+def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunRecord:
+    """Rebuild the run's record (traces, true outputs, message counts) from its history."""
+    from runtime.time import to_ticks
+
+    rec = RunRecord(
+        scenario=scenario.name, seed=scenario.seed, engine=engine,
+        end_time=to_ticks(scenario.end_time), time_unit=scenario.time_unit,
+    )
+    for name, lp in sorted(scenario.loops.items()):
+        rec.loops[name] = LoopRecord(plant=lp.plant, sensor=lp.sensor, setpoints=[(0, lp.setpoint)])
+    for name, cfg in sorted(scenario.nodes.items()):
+        if cfg.kind == "plant":
+            rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
+    with connect(path) as conn:
+        rows = conn.execute("SELECT t, key, body FROM messages ORDER BY id")
+        for t, key, body in rows:
+            rec.published[key] = rec.published.get(key, 0) + 1
+            parts = key.split("/")
+            if len(parts) == 3 and parts[0] == "loop" and parts[1] in rec.loops:
+                loop = rec.loops[parts[1]]
+                value = codec.unpack_mapping(body)
+                if parts[2] == "meas":
+                    loop.t.append(t)
+                    loop.y.append(float(value["value"]))
+                    loop.t_sampled.append(int(value["t_sampled"]))
+                elif parts[2] == "u":
+                    loop.u.append(float(value["value"]))
+            elif len(parts) == 3 and parts[:2] == ["ops", "setpoint"] and parts[2] in rec.loops:
+                rec.loops[parts[2]].setpoints.append((t, float(codec.unpack_mapping(body)["value"])))
+            elif len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
+                plant = rec.plants.get(parts[1])
+                if plant is not None:
+                    values = codec.unpack_mapping(body)["values"]
+                    plant.t.append(t)
+                    plant.x.append([float(values[s]) for s in plant.state_names])
+        meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
+    stop = meta.get("stop") or {}
+    rec.dropped_invalid = dict(stop.get("dropped_invalid", {}))
+    return rec

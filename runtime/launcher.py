@@ -1,0 +1,340 @@
+"""The launcher: runs a scenario by one of three engines and leaves the run's artefacts in DIR.
+
+``processes`` (default) starts one OS process per node with exactly the command
+``wncs node SCENARIO NAME --connect ENDPOINT --run-id ID`` around an embedded zenoh router;
+``threads`` runs the same nodes in this process, each with its own session on the same router;
+``direct`` simulates without a bus (:mod:`runtime.direct`). DIR receives ``run.json`` (run id,
+router endpoint, node pids) at start, then ``history.sqlite`` (bus engines), ``summary.json``,
+one PNG per loop, and ``logs/`` with each process's log.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import secrets
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+from bus_schemas import Stop, Tick, codec, keys
+from runtime.errors import NodeFault
+from runtime.report import save_record, write_plots, write_summary
+from runtime.scenario import Scenario, load_scenario
+from runtime.time import to_units
+
+__all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
+
+log = logging.getLogger(__name__)
+
+ENGINES = ("processes", "threads", "direct")
+RUN_FILE = "run.json"
+SCENARIO_FILE = "scenario.yaml"
+_EXIT_GRACE_S = 10.0
+
+
+@dataclass
+class RunResult:
+    """What a launch produced: exit code, error (if any) and the summary."""
+
+    code: int
+    error: str | None = None
+    summary: dict[str, Any] = field(default_factory=dict)
+    out: Path | None = None
+
+
+def _wncs_executable() -> list[str]:
+    script = Path(sys.executable).parent / "wncs"
+    if script.exists():
+        return [str(script)]
+    found = shutil.which("wncs")
+    return [found] if found else [sys.executable, "-m", "runtime.cli"]
+
+
+def node_command(
+    scenario_path: str, name: str, endpoint: str, run_id: str, *, extra: list[str] | None = None
+) -> list[str]:
+    """The command that runs node ``name`` (``wncs node SCENARIO NAME --connect EP --run-id ID``)."""
+    return [
+        *_wncs_executable(), "node", scenario_path, name,
+        "--connect", endpoint, "--run-id", run_id, *(extra or []),
+    ]
+
+
+class _Progress:
+    """Shows simulated time against end time on a terminal; remembers the clock's Stop."""
+
+    def __init__(self, run_id: str, scenario: Scenario, stream: TextIO | None) -> None:
+        self.run_id = run_id
+        self.end = scenario.end_time
+        self.unit = scenario.time_unit
+        self.stream = stream
+        self.t = 0.0
+        self.stop: Stop | None = None
+        self.alive: set[str] = set()
+        self._shown = -1.0
+
+    def on_tick(self, sample: Any) -> None:
+        try:
+            tick = codec.decode(sample.payload.to_bytes(), Tick).body
+        except Exception:  # noqa: BLE001 - a progress display never fails a run
+            return
+        self.t = to_units(tick.t)
+
+    def on_stop(self, sample: Any) -> None:
+        try:
+            self.stop = codec.decode(sample.payload.to_bytes(), Stop).body
+        except Exception:  # noqa: BLE001
+            return
+
+    def on_alive(self, sample: Any) -> None:
+        import zenoh
+
+        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        if sample.kind == zenoh.SampleKind.PUT:
+            self.alive.add(name)
+
+    def show(self, final: bool = False) -> None:
+        if self.stream is None or (self.t == self._shown and not final):
+            return
+        self._shown = self.t
+        self.stream.write(f"\r  t = {self.t:8.3f} / {self.end:g} {self.unit}")
+        if final:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    tmp.replace(path)
+
+
+def launch(
+    scenario_path: str | Path,
+    out: str | Path,
+    *,
+    engine: str = "processes",
+    seed: int | None = None,
+    listen: str | None = None,
+    realtime: float | None = None,
+    progress: TextIO | None = None,
+) -> RunResult:
+    """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts."""
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
+    scenario_path = Path(scenario_path)
+    scenario = load_scenario(scenario_path)
+    if seed is not None:
+        scenario = scenario.model_copy(update={"seed": seed})
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / SCENARIO_FILE).write_text(
+        yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
+    )
+    run_id = "r" + secrets.token_hex(5)
+    run_info: dict[str, Any] = {
+        "run_id": run_id, "engine": engine, "scenario": str(scenario_path.resolve()),
+        "seed": scenario.seed, "endpoint": None, "nodes": {},
+    }
+    wall0 = time.perf_counter()
+    if engine == "direct":
+        _write_json(out / RUN_FILE, run_info)
+        from runtime.direct import simulate
+
+        rec = simulate(scenario)
+        rec.wall_s = time.perf_counter() - wall0
+        save_record(rec, out)
+        summary = write_summary(rec, out)
+        write_plots(rec, out)
+        return RunResult(0, None, summary, out)
+    return _launch_bus(scenario, scenario_path, out, run_info, engine=engine, listen=listen,
+                       realtime=realtime, progress=progress, wall0=wall0)
+
+
+def _launch_bus(
+    scenario: Scenario, scenario_path: Path, out: Path, run_info: dict[str, Any], *,
+    engine: str, listen: str | None, realtime: float | None, progress: TextIO | None,
+    wall0: float,
+) -> RunResult:
+    from runtime.bus import DEFAULT_LISTEN, open_router
+    from runtime.history import load_record
+
+    run_id = run_info["run_id"]
+    router, locators = open_router(listen or DEFAULT_LISTEN)
+    endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
+    run_info["endpoint"] = endpoint
+    _write_json(out / RUN_FILE, run_info)
+    prog = _Progress(run_id, scenario, progress)
+    subs = [
+        router.declare_subscriber(keys.full(run_id, keys.tick()), prog.on_tick),
+        router.declare_subscriber(keys.full(run_id, keys.stop()), prog.on_stop),
+        router.liveliness().declare_subscriber(
+            keys.full(run_id, keys.alive_all()), prog.on_alive, history=True
+        ),
+    ]
+    names = ["clock", *scenario.participants()]
+    options = {
+        "historian": ["--out", str(out), "--engine", engine],
+        "clock": ["--realtime", repr(realtime)] if realtime else [],
+    }
+    seed_args = ["--seed", str(scenario.seed)]
+    t_started: float | None = None
+    code, error = 0, None
+    try:
+        if engine == "processes":
+            code, error, t_started = _run_processes(
+                scenario_path, out, run_info, names, endpoint, options, seed_args, prog,
+            )
+        else:
+            code, error, t_started = _run_threads(
+                scenario, out, run_id, names, endpoint, realtime, engine, prog,
+            )
+    finally:
+        prog.show(final=True)
+        for s in subs:
+            s.undeclare()
+        router.close()
+    wall_end = time.perf_counter()
+    if prog.stop is not None and not prog.stop.ok and error is None:
+        error = prog.stop.reason
+    if code != 0:
+        return RunResult(code, error or "run failed", {}, out)
+    rec = load_record(out / "history.sqlite", scenario, engine=engine)
+    rec.wall_s = wall_end - wall0
+    started = t_started if t_started is not None else wall0
+    rec.phases = {"startup": started - wall0, "run": wall_end - started}
+    summary = write_summary(rec, out)
+    write_plots(rec, out)
+    return RunResult(0, None, summary, out)
+
+
+def _run_processes(
+    scenario_path: Path, out: Path, run_info: dict[str, Any], names: list[str], endpoint: str,
+    options: dict[str, list[str]], seed_args: list[str], prog: _Progress,
+) -> tuple[int, str | None, float | None]:
+    logs = out / "logs"
+    logs.mkdir(exist_ok=True)
+    procs: dict[str, subprocess.Popen] = {}
+    files = []
+    t_started: float | None = None
+    try:
+        for name in names:
+            cmd = node_command(
+                str(scenario_path), name, endpoint, run_info["run_id"],
+                extra=[*options.get(name, []), *seed_args],
+            )
+            f = open(logs / f"{name}.log", "w")  # noqa: SIM115 - closed in finally
+            files.append(f)
+            procs[name] = subprocess.Popen(
+                cmd, stdout=f, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                start_new_session=True,
+            )
+        run_info["nodes"] = {n: p.pid for n, p in procs.items()}
+        _write_json(out / RUN_FILE, run_info)
+        clock = procs["clock"]
+        while clock.poll() is None:
+            if t_started is None and set(names) <= prog.alive:
+                t_started = time.perf_counter()
+            prog.show()
+            time.sleep(0.05)
+        code = clock.returncode
+        deadline = time.monotonic() + _EXIT_GRACE_S
+        for name, p in procs.items():
+            try:
+                p.wait(timeout=max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                log.warning("node %s did not exit after the stop; killing it", name)
+        error = None
+        if code != 0:
+            error = prog.stop.reason if prog.stop is not None else _last_error(logs / "clock.log")
+        else:
+            failed = {n: p.returncode for n, p in procs.items() if p.returncode not in (0, None)}
+            if failed:
+                code, error = 4, f"nodes exited with errors: {failed} (see {logs})"
+        return code, error, t_started
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                _kill(p)
+        for f in files:
+            f.close()
+
+
+def _kill(p: subprocess.Popen) -> None:
+    try:
+        os.killpg(p.pid, signal.SIGTERM)
+        p.wait(timeout=3)
+    except (ProcessLookupError, subprocess.TimeoutExpired, PermissionError):
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        p.wait()
+
+
+def _last_error(path: Path) -> str:
+    try:
+        lines = [ln for ln in path.read_text().splitlines() if "ERROR" in ln]
+    except OSError:
+        return "the clock failed"
+    return lines[-1] if lines else "the clock failed"
+
+
+def _run_threads(
+    scenario: Scenario, out: Path, run_id: str, names: list[str], endpoint: str,
+    realtime: float | None, engine: str, prog: _Progress,
+) -> tuple[int, str | None, float | None]:
+    from runtime.bus import open_client
+    from runtime.clock import ClockRunner
+    from runtime.node import NodeContext
+    from runtime.nodes import node_class
+
+    errors: dict[str, str] = {}
+    result: dict[str, int] = {}
+
+    def run_node(name: str) -> None:
+        session = open_client(endpoint)
+        try:
+            if name == "clock":
+                runner = ClockRunner(session, run_id, scenario, realtime=realtime)
+                result["clock"] = runner.run()
+                if runner.error:
+                    errors["clock"] = runner.error
+            else:
+                ctx = NodeContext(name, run_id, scenario, session,
+                                  {"out": str(out), "engine": engine})
+                node_class(scenario, name)(ctx).run()
+        except Exception as err:  # noqa: BLE001 - reported as the node's failure
+            errors[name] = f"{type(err).__name__}: {err}"
+            log.error("node %s failed: %s", name, err)
+        finally:
+            session.close()
+
+    threads = [threading.Thread(target=run_node, args=(n,), name=n, daemon=True) for n in names]
+    for th in threads:
+        th.start()
+    t_started: float | None = None
+    clock_thread = threads[0]
+    while clock_thread.is_alive():
+        if t_started is None and set(names) <= prog.alive:
+            t_started = time.perf_counter()
+        prog.show()
+        clock_thread.join(0.05)
+    for th in threads[1:]:
+        th.join(_EXIT_GRACE_S)
+    code = result.get("clock", 3)
+    if code != 0:
+        return code, errors.get("clock") or str(errors) or "clock failed", t_started
+    if errors:
+        raise NodeFault(f"nodes failed: {errors}")
+    return 0, None, t_started

@@ -1,0 +1,86 @@
+"""Run artefacts: ``summary.json`` and the PNG plots (seed 000, Fig. 3 and 4 style)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from runtime.record import RunRecord, summarize
+from runtime.time import to_units
+
+__all__ = ["SUMMARY_FILE", "RECORD_FILE", "write_summary", "write_plots", "save_record", "load_saved_record"]
+
+SUMMARY_FILE = "summary.json"
+RECORD_FILE = "record.json"
+
+
+def write_summary(rec: RunRecord, out: Path, **extra: Any) -> dict[str, Any]:
+    """Write ``summary.json`` and return it."""
+    summary = summarize(rec)
+    summary.update(extra)
+    (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    return summary
+
+
+def save_record(rec: RunRecord, out: Path) -> None:
+    """Keep a direct run's record (bus runs have ``history.sqlite`` instead)."""
+    data = {
+        "scenario": rec.scenario, "seed": rec.seed, "engine": rec.engine,
+        "end_time": rec.end_time, "time_unit": rec.time_unit,
+        "loops": {n: vars(lp) for n, lp in rec.loops.items()},
+        "plants": {n: {"state_names": p.state_names, "t": p.t, "x": p.x}
+                   for n, p in rec.plants.items()},
+    }
+    (out / RECORD_FILE).write_text(json.dumps(data))
+
+
+def load_saved_record(out: Path) -> RunRecord:
+    """Inverse of :func:`save_record`."""
+    from runtime.record import LoopRecord, PlantRecord
+
+    data = json.loads((out / RECORD_FILE).read_text())
+    rec = RunRecord(data["scenario"], data["seed"], data["engine"], data["end_time"],
+                    data["time_unit"])
+    for n, lp in data["loops"].items():
+        lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
+        rec.loops[n] = LoopRecord(**lp)
+    for n, p in data["plants"].items():
+        rec.plants[n] = PlantRecord(tuple(p["state_names"]), p["t"], p["x"])
+    return rec
+
+
+def write_plots(rec: RunRecord, out: Path) -> list[Path]:
+    """One PNG per loop: the true output and its set point against time, and the control moves."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    unit = rec.time_unit
+    for name, loop in sorted(rec.loops.items()):
+        t, y = rec.plants[loop.plant].signal(loop.sensor)
+        sp_t = [to_units(v) for v, _ in loop.setpoints] + [to_units(rec.end_time)]
+        sp_v = [v for _, v in loop.setpoints]
+        fig, (ax, ax_u) = plt.subplots(
+            2, 1, figsize=(7, 5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]}
+        )
+        ax.plot(t, y, label=f"{loop.sensor} (plant)")
+        ax.step(sp_t, [*sp_v, sp_v[-1]], where="post", ls="--", color="k", label="set point")
+        if loop.t:
+            ax.plot([to_units(v) for v in loop.t], loop.y, ".", ms=3, label="delivered samples")
+            ax_u.step([to_units(v) for v in loop.t], loop.u, where="post", color="C2")
+        ax.set_ylabel(loop.sensor)
+        ax.set_title(f"{rec.scenario}: loop {name} ({rec.engine} engine)")
+        ax.legend(loc="best", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax_u.set_ylabel("u")
+        ax_u.set_xlabel(f"time [{unit}]")
+        ax_u.grid(True, alpha=0.3)
+        fig.tight_layout()
+        path = out / f"{name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths
