@@ -21,7 +21,7 @@ def _finite(value: float) -> float:
 
 
 class Sample(BaseModel):
-    """A measurement: taken at a sensor (``plant/<p>/sensor/<s>``) or delivered (``loop/<l>/meas``)."""
+    """A measurement, at the sensor (``plant/<p>/sensor/<s>``) or delivered (``loop/<l>/meas``)."""
 
     model_config = _FROZEN
 

@@ -15,7 +15,16 @@ from pydantic import BaseModel, ValidationError
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope, RawEnvelope
 from runtime.errors import SchemaError
 
-__all__ = ["ENCODING", "encode", "pack_body", "pack_mapping", "unpack_mapping", "decode_envelope", "decode_body", "decode"]
+__all__ = [
+    "ENCODING",
+    "encode",
+    "pack_body",
+    "pack_mapping",
+    "unpack_mapping",
+    "decode_envelope",
+    "decode_body",
+    "decode",
+]
 
 ENCODING = "application/msgpack"
 
@@ -37,9 +46,7 @@ def unpack_mapping(raw: bytes) -> dict:
     return msgpack.unpackb(raw, raw=False)
 
 
-def encode(
-    *, run: str, src: str, seq: int, round: int, t: int, body: BaseModel
-) -> bytes:
+def encode(*, run: str, src: str, seq: int, round: int, t: int, body: BaseModel) -> bytes:
     """Encode one message; the body must already be a validated model."""
     return msgpack.packb(
         {

@@ -24,7 +24,9 @@ class ControllerNode(Node):
         self.loop = cfg.loop
         loop = self.scenario.loops[self.loop]
         self.plant = loop.plant
-        self.setpoints = {n: lp.setpoint for n, lp in self.scenario.loops_of_plant(loop.plant).items()}
+        self.setpoints = {
+            n: lp.setpoint for n, lp in self.scenario.loops_of_plant(loop.plant).items()
+        }
         self.feedforward = (
             self.scenario.feedforward(self.loop) if cfg.law.feedforward == "steady_state" else None
         )

@@ -27,11 +27,13 @@ class NetworkNode(Node):
             if loop.network != self.name:
                 continue
             self.subscribe(
-                keys.sensor(loop.plant, loop.sensor), Sample,
+                keys.sensor(loop.plant, loop.sensor),
+                Sample,
                 self._path(keys.meas(name), to_ticks(loop.tau_d)),
             )
             self.subscribe(
-                keys.move(name), Move,
+                keys.move(name),
+                Move,
                 self._path(keys.actuator(loop.plant, loop.actuator), to_ticks(loop.tau_a)),
             )
 

@@ -41,7 +41,11 @@ class PlantNode(Node):
     def _integrate_to(self, t: int) -> None:
         if t > self.t_state:
             self.x = rk4(
-                self.model.rhs, to_units(self.t_state), self.x, to_units(t), self.u,
+                self.model.rhs,
+                to_units(self.t_state),
+                self.x,
+                to_units(t),
+                self.u,
                 max_step=self.max_step,
             )
             self.t_state = t

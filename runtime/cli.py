@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import signal
 import sys
 from pathlib import Path
 from typing import Any
@@ -43,10 +44,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--engine", choices=("processes", "threads", "direct"), default="processes")
     run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    run.add_argument("--listen", default=None,
-                     help="endpoint of the embedded router (default tcp/127.0.0.1:0)")
-    run.add_argument("--realtime", type=_positive_float, default=None,
-                     metavar="SECONDS_PER_UNIT", help="pace virtual time against the wall clock")
+    run.add_argument(
+        "--listen", default=None, help="endpoint of the embedded router (default tcp/127.0.0.1:0)"
+    )
+    run.add_argument(
+        "--realtime",
+        type=_positive_float,
+        default=None,
+        metavar="SECONDS_PER_UNIT",
+        help="pace virtual time against the wall clock",
+    )
     run.add_argument("--quiet", action="store_true", help="print only errors")
 
     node = sub.add_parser("node", help="run one node of a scenario's graph")
@@ -57,8 +64,13 @@ def build_parser() -> argparse.ArgumentParser:
     node.add_argument("--seed", type=int, default=None)
     node.add_argument("--out", default=".", help="historian: directory of history.sqlite")
     node.add_argument("--engine", default="processes", help="historian: engine recorded in meta")
-    node.add_argument("--realtime", type=_positive_float, default=None,
-                      metavar="SECONDS_PER_UNIT", help="clock: real-time pacing")
+    node.add_argument(
+        "--realtime",
+        type=_positive_float,
+        default=None,
+        metavar="SECONDS_PER_UNIT",
+        help="clock: real-time pacing",
+    )
 
     report = sub.add_parser("report", help="redraw a run's plots and print its figures")
     report.add_argument("dir")
@@ -81,21 +93,34 @@ def _table(summary: dict[str, Any]) -> str:
 def _cmd_run(args: argparse.Namespace) -> int:
     from runtime.launcher import launch
 
+    def _terminate(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt  # unwinds the launcher, which stops its children
+
+    signal.signal(signal.SIGTERM, _terminate)
     stream = sys.stdout if (sys.stdout.isatty() and not args.quiet) else None
     result = launch(
-        args.scenario, args.out, engine=args.engine, seed=args.seed, listen=args.listen,
-        realtime=args.realtime, progress=stream,
+        args.scenario,
+        args.out,
+        engine=args.engine,
+        seed=args.seed,
+        listen=args.listen,
+        realtime=args.realtime,
+        progress=stream,
     )
     if result.code != 0:
         print(f"wncs run: {result.error}", file=sys.stderr)
         return result.code
     if not args.quiet:
         s = result.summary
-        print(f"{s['scenario']} ({s['engine']} engine, seed {s['seed']}): "
-              f"{s['end_time']:g} {s['time_unit']} in {s['wall_s']:.2f} s wall time")
+        print(
+            f"{s['scenario']} ({s['engine']} engine, seed {s['seed']}): "
+            f"{s['end_time']:g} {s['time_unit']} in {s['wall_s']:.2f} s wall time"
+        )
         print(_table(s))
-        print(f"artefacts in {Path(args.out).resolve()}: summary.json, "
-              + ", ".join(f"{n}.png" for n in s["loops"]))
+        print(
+            f"artefacts in {Path(args.out).resolve()}: summary.json, "
+            + ", ".join(f"{n}.png" for n in s["loops"])
+        )
     return 0
 
 
@@ -121,8 +146,9 @@ def _cmd_node(args: argparse.Namespace) -> int:
             return ClockRunner(session, args.run_id, scenario, realtime=args.realtime).run()
         from runtime.node import NodeContext
 
-        ctx = NodeContext(args.name, args.run_id, scenario, session,
-                          {"out": args.out, "engine": args.engine})
+        ctx = NodeContext(
+            args.name, args.run_id, scenario, session, {"out": args.out, "engine": args.engine}
+        )
         return cls(ctx).run()
     finally:
         session.close()

@@ -72,7 +72,9 @@ class RoundPlanner:
                 return
             if nxt <= self.t:
                 late = sorted(d.node for d in dones.values() if d.next_time == nxt)
-                raise ProtocolError(f"round {self.round}: {late} report next_time {nxt} <= {self.t}")
+                raise ProtocolError(
+                    f"round {self.round}: {late} report next_time {nxt} <= {self.t}"
+                )
             self.t = nxt
             self.microsteps = 0
         self.round += 1
@@ -121,7 +123,8 @@ class ClockRunner:
         self.scenario = scenario
         self.participants = frozenset(scenario.participants())
         self.planner = RoundPlanner(
-            self.participants, to_ticks(scenario.end_time),
+            self.participants,
+            to_ticks(scenario.end_time),
             max_microsteps=scenario.clock.max_microsteps,
         )
         self.pacer = Pacer(realtime) if realtime else None
@@ -137,13 +140,20 @@ class ClockRunner:
 
     def _publish(self, rel: str, body: Tick | Stop) -> None:
         payload = codec.encode(
-            run=self.run_id, src="clock", seq=self._seq, round=self.planner.round,
-            t=self.planner.t, body=body,
+            run=self.run_id,
+            src="clock",
+            seq=self._seq,
+            round=self.planner.round,
+            t=self.planner.t,
+            body=body,
         )
         self._seq += 1
         self.session.put(
-            self._full(rel), payload, encoding=zenoh.Encoding(codec.ENCODING),
-            congestion_control=zenoh.CongestionControl.BLOCK, express=True,
+            self._full(rel),
+            payload,
+            encoding=zenoh.Encoding(codec.ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            express=True,
         )
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
@@ -198,7 +208,10 @@ class ClockRunner:
             for key, n in counts.items():
                 merged[key] = max(merged.get(key, 0), n)  # each subscriber sees every message
         return Stop(
-            ok=ok, reason=reason, round=self.planner.round, t=self.planner.t,
+            ok=ok,
+            reason=reason,
+            round=self.planner.round,
+            t=self.planner.t,
             dropped_invalid=dict(sorted(merged.items())),
         )
 

@@ -52,7 +52,11 @@ class _Plant:
     def integrate_to(self, t: int) -> None:
         if t > self.t:
             self.x = rk4(
-                self.model.rhs, to_units(self.t), self.x, to_units(t), self.u,
+                self.model.rhs,
+                to_units(self.t),
+                self.x,
+                to_units(t),
+                self.u,
                 max_step=self.max_step,
             )
             self.t = t

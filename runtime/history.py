@@ -75,8 +75,11 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
     from runtime.time import to_ticks
 
     rec = RunRecord(
-        scenario=scenario.name, seed=scenario.seed, engine=engine,
-        end_time=to_ticks(scenario.end_time), time_unit=scenario.time_unit,
+        scenario=scenario.name,
+        seed=scenario.seed,
+        engine=engine,
+        end_time=to_ticks(scenario.end_time),
+        time_unit=scenario.time_unit,
     )
     for name, lp in sorted(scenario.loops.items()):
         rec.loops[name] = LoopRecord(plant=lp.plant, sensor=lp.sensor, setpoints=[(0, lp.setpoint)])
@@ -98,7 +101,9 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                 elif parts[2] == "u":
                     loop.u.append(float(value["value"]))
             elif len(parts) == 3 and parts[:2] == ["ops", "setpoint"] and parts[2] in rec.loops:
-                rec.loops[parts[2]].setpoints.append((t, float(codec.unpack_mapping(body)["value"])))
+                rec.loops[parts[2]].setpoints.append(
+                    (t, float(codec.unpack_mapping(body)["value"]))
+                )
             elif len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
                 plant = rec.plants.get(parts[1])
                 if plant is not None:

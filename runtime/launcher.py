@@ -63,10 +63,17 @@ def _wncs_executable() -> list[str]:
 def node_command(
     scenario_path: str, name: str, endpoint: str, run_id: str, *, extra: list[str] | None = None
 ) -> list[str]:
-    """The command that runs node ``name`` (``wncs node SCENARIO NAME --connect EP --run-id ID``)."""
+    """The command that runs node ``name``: ``wncs node SCENARIO NAME --connect EP --run-id ID``."""
     return [
-        *_wncs_executable(), "node", scenario_path, name,
-        "--connect", endpoint, "--run-id", run_id, *(extra or []),
+        *_wncs_executable(),
+        "node",
+        scenario_path,
+        name,
+        "--connect",
+        endpoint,
+        "--run-id",
+        run_id,
+        *(extra or []),
     ]
 
 
@@ -82,12 +89,16 @@ class _Progress:
         self.stop: Stop | None = None
         self.alive: set[str] = set()
         self._shown = -1.0
+        self.first_tick_at: float | None = None  # perf_counter when round 0 was seen
+        self.stop_at: float | None = None
 
     def on_tick(self, sample: Any) -> None:
         try:
             tick = codec.decode(sample.payload.to_bytes(), Tick).body
         except Exception:  # noqa: BLE001 - a progress display never fails a run
             return
+        if self.first_tick_at is None:
+            self.first_tick_at = time.perf_counter()
         self.t = to_units(tick.t)
 
     def on_stop(self, sample: Any) -> None:
@@ -95,6 +106,7 @@ class _Progress:
             self.stop = codec.decode(sample.payload.to_bytes(), Stop).body
         except Exception:  # noqa: BLE001
             return
+        self.stop_at = time.perf_counter()
 
     def on_alive(self, sample: Any) -> None:
         import zenoh
@@ -143,8 +155,12 @@ def launch(
     )
     run_id = "r" + secrets.token_hex(5)
     run_info: dict[str, Any] = {
-        "run_id": run_id, "engine": engine, "scenario": str(scenario_path.resolve()),
-        "seed": scenario.seed, "endpoint": None, "nodes": {},
+        "run_id": run_id,
+        "engine": engine,
+        "scenario": str(scenario_path.resolve()),
+        "seed": scenario.seed,
+        "endpoint": None,
+        "nodes": {},
     }
     wall0 = time.perf_counter()
     if engine == "direct":
@@ -157,13 +173,29 @@ def launch(
         summary = write_summary(rec, out)
         write_plots(rec, out)
         return RunResult(0, None, summary, out)
-    return _launch_bus(scenario, scenario_path, out, run_info, engine=engine, listen=listen,
-                       realtime=realtime, progress=progress, wall0=wall0)
+    return _launch_bus(
+        scenario,
+        scenario_path,
+        out,
+        run_info,
+        engine=engine,
+        listen=listen,
+        realtime=realtime,
+        progress=progress,
+        wall0=wall0,
+    )
 
 
 def _launch_bus(
-    scenario: Scenario, scenario_path: Path, out: Path, run_info: dict[str, Any], *,
-    engine: str, listen: str | None, realtime: float | None, progress: TextIO | None,
+    scenario: Scenario,
+    scenario_path: Path,
+    out: Path,
+    run_info: dict[str, Any],
+    *,
+    engine: str,
+    listen: str | None,
+    realtime: float | None,
+    progress: TextIO | None,
     wall0: float,
 ) -> RunResult:
     from runtime.bus import DEFAULT_LISTEN, open_router
@@ -193,11 +225,25 @@ def _launch_bus(
     try:
         if engine == "processes":
             code, error, t_started = _run_processes(
-                scenario_path, out, run_info, names, endpoint, options, seed_args, prog,
+                scenario_path,
+                out,
+                run_info,
+                names,
+                endpoint,
+                options,
+                seed_args,
+                prog,
             )
         else:
             code, error, t_started = _run_threads(
-                scenario, out, run_id, names, endpoint, realtime, engine, prog,
+                scenario,
+                out,
+                run_id,
+                names,
+                endpoint,
+                realtime,
+                engine,
+                prog,
             )
     finally:
         prog.show(final=True)
@@ -211,16 +257,23 @@ def _launch_bus(
         return RunResult(code, error or "run failed", {}, out)
     rec = load_record(out / "history.sqlite", scenario, engine=engine)
     rec.wall_s = wall_end - wall0
-    started = t_started if t_started is not None else wall0
-    rec.phases = {"startup": started - wall0, "run": wall_end - started}
+    first = prog.first_tick_at or t_started or wall0
+    stopped = prog.stop_at or wall_end
+    rec.phases = {"startup": first - wall0, "run": stopped - first, "teardown": wall_end - stopped}
     summary = write_summary(rec, out)
     write_plots(rec, out)
     return RunResult(0, None, summary, out)
 
 
 def _run_processes(
-    scenario_path: Path, out: Path, run_info: dict[str, Any], names: list[str], endpoint: str,
-    options: dict[str, list[str]], seed_args: list[str], prog: _Progress,
+    scenario_path: Path,
+    out: Path,
+    run_info: dict[str, Any],
+    names: list[str],
+    endpoint: str,
+    options: dict[str, list[str]],
+    seed_args: list[str],
+    prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
@@ -230,13 +283,19 @@ def _run_processes(
     try:
         for name in names:
             cmd = node_command(
-                str(scenario_path), name, endpoint, run_info["run_id"],
+                str(scenario_path),
+                name,
+                endpoint,
+                run_info["run_id"],
                 extra=[*options.get(name, []), *seed_args],
             )
             f = open(logs / f"{name}.log", "w")  # noqa: SIM115 - closed in finally
             files.append(f)
             procs[name] = subprocess.Popen(
-                cmd, stdout=f, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                cmd,
+                stdout=f,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
                 start_new_session=True,
             )
         run_info["nodes"] = {n: p.pid for n, p in procs.items()}
@@ -291,8 +350,14 @@ def _last_error(path: Path) -> str:
 
 
 def _run_threads(
-    scenario: Scenario, out: Path, run_id: str, names: list[str], endpoint: str,
-    realtime: float | None, engine: str, prog: _Progress,
+    scenario: Scenario,
+    out: Path,
+    run_id: str,
+    names: list[str],
+    endpoint: str,
+    realtime: float | None,
+    engine: str,
+    prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
     from runtime.bus import open_client
     from runtime.clock import ClockRunner
@@ -311,8 +376,9 @@ def _run_threads(
                 if runner.error:
                     errors["clock"] = runner.error
             else:
-                ctx = NodeContext(name, run_id, scenario, session,
-                                  {"out": str(out), "engine": engine})
+                ctx = NodeContext(
+                    name, run_id, scenario, session, {"out": str(out), "engine": engine}
+                )
                 node_class(scenario, name)(ctx).run()
         except Exception as err:  # noqa: BLE001 - reported as the node's failure
             errors[name] = f"{type(err).__name__}: {err}"

@@ -74,9 +74,7 @@ def step_metrics(
         settling = None
     else:
         settling = float(tw[outside[-1] + 1] - t_step)
-    return StepMetrics(
-        t_step, r_from, r_to, overshoot, settling, _trapz(np.abs(r_to - yw), tw)
-    )
+    return StepMetrics(t_step, r_from, r_to, overshoot, settling, _trapz(np.abs(r_to - yw), tw))
 
 
 def iae(t: np.ndarray, y: np.ndarray, r: Sequence[float] | np.ndarray) -> float:

@@ -111,9 +111,7 @@ class Node:
         self._backlog: list[tuple[str, str, bytes]] = []
 
     # -- declarations (call from __init__) -----------------------------------------------------
-    def subscribe(
-        self, pattern: str, body_type: type[BaseModel] | None, handler: Handler
-    ) -> None:
+    def subscribe(self, pattern: str, body_type: type[BaseModel] | None, handler: Handler) -> None:
         """Receive messages on run-relative ``pattern``; ``handler(envelope, body)``."""
         self._subs.append(
             _Subscription(
@@ -156,9 +154,7 @@ class Node:
         session = self.ctx.session
         prefix = keys.run_prefix(self.run_id)
         declared = [
-            session.declare_subscriber(
-                f"{prefix}/clock/{leaf}", self._enqueue("control")
-            )
+            session.declare_subscriber(f"{prefix}/clock/{leaf}", self._enqueue("control"))
             for leaf in ("tick", "stop")
         ]
         for pattern in sorted({s.pattern for s in self._subs}):
@@ -185,7 +181,11 @@ class Node:
             if self._backlog:
                 kind, key, payload = self._backlog.pop(0)
             else:
-                kind, key, payload = self._queue.get()
+                try:
+                    kind, key, payload = self._queue.get(timeout=self._timeout)
+                except queue.Empty:
+                    self._check_connected()
+                    continue
             if kind == "data":
                 self._accept(key, payload)
                 continue
@@ -209,6 +209,13 @@ class Node:
                 self._round_(tick)
             except _StopRequested as stop:
                 self._backlog.insert(0, ("control", stop.key, stop.payload))
+
+    def _check_connected(self) -> None:
+        """Idle between ticks (real time leaves long gaps): check the router is still there."""
+        if self.ctx.session.is_closed() or not list(self.ctx.session.info.routers_zid()):
+            raise ProtocolError(
+                f"{self.name}: lost the connection to the router (round {self.round})"
+            )
 
     def _round_(self, tick: Tick) -> None:
         if tick.round != self.round + 1 and self.round >= 0:
@@ -335,7 +342,9 @@ class Node:
         self.dropped_invalid[rel] += 1
         if rel not in self._logged_drop:
             self._logged_drop.add(rel)
-            self.log.warning("dropping invalid message on %s: %s (logged once per key)", rel, reason)
+            self.log.warning(
+                "dropping invalid message on %s: %s (logged once per key)", rel, reason
+            )
 
     # -- dispatch, timers, output ----------------------------------------------------------------
     def _dispatch(self, rel: str, env: RawEnvelope) -> None:
@@ -386,7 +395,11 @@ class Node:
             )
             self._publishers[rel] = pub
         payload = codec.encode(
-            run=self.run_id, src=self.name, seq=self._seq, round=max(self.round, 0), t=self.now,
+            run=self.run_id,
+            src=self.name,
+            seq=self._seq,
+            round=max(self.round, 0),
+            t=self.now,
             body=body,
         )
         self._seq += 1

@@ -9,7 +9,14 @@ from typing import Any
 from runtime.record import RunRecord, summarize
 from runtime.time import to_units
 
-__all__ = ["SUMMARY_FILE", "RECORD_FILE", "write_summary", "write_plots", "save_record", "load_saved_record"]
+__all__ = [
+    "SUMMARY_FILE",
+    "RECORD_FILE",
+    "write_summary",
+    "write_plots",
+    "save_record",
+    "load_saved_record",
+]
 
 SUMMARY_FILE = "summary.json"
 RECORD_FILE = "record.json"
@@ -26,11 +33,15 @@ def write_summary(rec: RunRecord, out: Path, **extra: Any) -> dict[str, Any]:
 def save_record(rec: RunRecord, out: Path) -> None:
     """Keep a direct run's record (bus runs have ``history.sqlite`` instead)."""
     data = {
-        "scenario": rec.scenario, "seed": rec.seed, "engine": rec.engine,
-        "end_time": rec.end_time, "time_unit": rec.time_unit,
+        "scenario": rec.scenario,
+        "seed": rec.seed,
+        "engine": rec.engine,
+        "end_time": rec.end_time,
+        "time_unit": rec.time_unit,
         "loops": {n: vars(lp) for n, lp in rec.loops.items()},
-        "plants": {n: {"state_names": p.state_names, "t": p.t, "x": p.x}
-                   for n, p in rec.plants.items()},
+        "plants": {
+            n: {"state_names": p.state_names, "t": p.t, "x": p.x} for n, p in rec.plants.items()
+        },
     }
     (out / RECORD_FILE).write_text(json.dumps(data))
 
@@ -40,8 +51,9 @@ def load_saved_record(out: Path) -> RunRecord:
     from runtime.record import LoopRecord, PlantRecord
 
     data = json.loads((out / RECORD_FILE).read_text())
-    rec = RunRecord(data["scenario"], data["seed"], data["engine"], data["end_time"],
-                    data["time_unit"])
+    rec = RunRecord(
+        data["scenario"], data["seed"], data["engine"], data["end_time"], data["time_unit"]
+    )
     for n, lp in data["loops"].items():
         lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
         rec.loops[n] = LoopRecord(**lp)

@@ -96,9 +96,7 @@ class PlantNodeConfig(BaseModel):
             ("u0", plant.input_names, self.u0),
         ):
             if set(given) != set(names):
-                raise ValueError(
-                    f"{field}: expected exactly {list(names)}, got {sorted(given)}"
-                )
+                raise ValueError(f"{field}: expected exactly {list(names)}, got {sorted(given)}")
         return self
 
     def build(self) -> Any:
@@ -230,8 +228,10 @@ class Scenario(BaseModel):
                     f"{at}.controller: node {loop.controller!r} controls loop {ctrl.loop!r}"
                 )
             if loop.controller in controlled:
-                raise ValueError(f"{at}.controller: {loop.controller!r} already controls "
-                                 f"loop {controlled[loop.controller]!r}")
+                raise ValueError(
+                    f"{at}.controller: {loop.controller!r} already controls "
+                    f"loop {controlled[loop.controller]!r}"
+                )
             controlled[loop.controller] = lname
             node_of("network", loop.network, f"{at}.network")
             if to_ticks(loop.tau_s) < 1:
@@ -258,18 +258,20 @@ class Scenario(BaseModel):
     def _check_feedforward(self) -> None:
         """Every steady-state feedforward must be computable at every scheduled set point."""
         current = {name: loop.setpoint for name, loop in self.loops.items()}
-        schedule = [None, *sorted(self.setpoints, key=lambda c: c.t)]
-        for change in schedule:
-            if change is not None:
+        order = sorted(range(len(self.setpoints)), key=lambda i: self.setpoints[i].t)
+        for index in [None, *order]:
+            where = "loops.*.setpoint (initial set points)"
+            if index is not None:
+                change = self.setpoints[index]
                 current[change.loop] = change.value
+                where = f"setpoints[{index}]"
             for lname, loop in self.loops.items():
-                ctrl = self.nodes[loop.controller]
-                if ctrl.law.feedforward != "steady_state":
+                if self.nodes[loop.controller].law.feedforward != "steady_state":
                     continue
                 try:
                     self.feedforward(lname).u_bar(self.plant_setpoints(loop.plant, current))
                 except ValueError as err:
-                    raise ValueError(f"loops.{lname}: feedforward: {err}") from err
+                    raise ValueError(f"{where}: feedforward of loop {lname!r}: {err}") from err
 
     # -- derived views used by nodes and engines --------------------------------------------------
     def loops_of_plant(self, plant: str) -> dict[str, LoopConfig]:

@@ -1,4 +1,4 @@
-"""Operator node: publishes each scheduled set-point change on ``ops/setpoint/<loop>`` at its time."""
+"""Operator node: publishes each scheduled set-point change on ``ops/setpoint/<loop>``."""
 
 from __future__ import annotations
 

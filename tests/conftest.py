@@ -1,0 +1,53 @@
+"""Shared fixtures: paths, an in-process zenoh router, and scenario helpers."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ROOT / "scenarios"
+BENCHMARK = SCENARIOS / "jcstr_benchmark.yaml"
+DELAY_CASE = SCENARIOS / "jcstr_delay.yaml"
+
+# Seed 000, section III.C: benchmark percent overshoots.
+PAPER_OS_LEVEL = 10.8
+PAPER_OS_TEMPERATURE = 11.0
+
+
+@pytest.fixture(autouse=True)
+def _global_state_unchanged():
+    """No test may leave numpy's global RNG or print options changed (python-control's habit)."""
+    state = np.random.get_state()[1].copy()
+    opts = np.get_printoptions()
+    yield
+    assert np.array_equal(np.random.get_state()[1], state), "global numpy RNG was used"
+    assert np.get_printoptions() == opts
+
+
+def load_yaml(path: Path) -> dict[str, Any]:
+    return yaml.safe_load(path.read_text())
+
+
+def write_variant(tmp_path: Path, base: Path, name: str, edit) -> Path:
+    """Write a modified copy of scenario ``base`` (``edit(data)`` changes the dict in place)."""
+    data = copy.deepcopy(load_yaml(base))
+    edit(data)
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="session")
+def router():
+    """A real zenoh router in this process on a free loopback port: ``(session, endpoint)``."""
+    from runtime.bus import open_router
+
+    session, locators = open_router("tcp/127.0.0.1:0")
+    yield session, locators[0]
+    session.close()

@@ -1,0 +1,245 @@
+"""End-to-end runs of ``wncs run`` with real OS processes on a real zenoh router.
+
+They assert on ``summary.json`` and ``history.sqlite`` only, never on wall-clock time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import msgpack
+import numpy as np
+import pytest
+import zenoh
+
+from bus_schemas import Tick, codec, keys
+from runtime.bus import open_client
+from runtime.direct import simulate
+from runtime.history import messages_digest
+from runtime.record import summarize
+from runtime.scenario import load_scenario
+from tests.conftest import (
+    BENCHMARK,
+    DELAY_CASE,
+    PAPER_OS_LEVEL,
+    PAPER_OS_TEMPERATURE,
+)
+
+pytestmark = pytest.mark.slow
+
+WNCS = [str(Path(sys.executable).parent / "wncs")]
+
+
+def wncs_run(scenario: Path, out: Path, *extra: str, timeout: float = 300) -> dict:
+    proc = subprocess.run(
+        [*WNCS, "run", str(scenario), "--out", str(out), "--quiet", *extra],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads((out / "summary.json").read_text())
+
+
+def start_run(scenario: Path, out: Path, *extra: str) -> tuple[subprocess.Popen, dict]:
+    """Start ``wncs run`` and wait for its run.json to name the router endpoint."""
+    proc = subprocess.Popen(
+        [*WNCS, "run", str(scenario), "--out", str(out), "--quiet", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    run_file = out / "run.json"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if run_file.exists():
+            info = json.loads(run_file.read_text())
+            if info.get("endpoint") and info.get("nodes"):
+                return proc, info
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    proc.kill()
+    raise AssertionError("run.json never named the endpoint and nodes")
+
+
+def traces(summary: dict) -> dict:
+    return {name: loop["trace"] for name, loop in summary["loops"].items()}
+
+
+def assert_same_traces(a: dict, b: dict, atol: float = 1e-9) -> None:
+    assert a.keys() == b.keys()
+    for name in a:
+        for k in ("t", "y", "u"):
+            x, y = np.asarray(a[name][k]), np.asarray(b[name][k])
+            assert x.shape == y.shape, (name, k)
+            assert np.max(np.abs(x - y), initial=0.0) <= atol, (name, k)
+
+
+@pytest.fixture(scope="module")
+def benchmark_run(tmp_path_factory) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("benchmark")
+    return out, wncs_run(BENCHMARK, out)
+
+
+def test_benchmark_by_processes_matches_the_paper(benchmark_run):
+    out, summary = benchmark_run
+    assert summary["engine"] == "processes" and summary["scenario"] == "jcstr_benchmark"
+    assert summary["loops"]["level"]["overshoot_pct"] == pytest.approx(PAPER_OS_LEVEL, abs=1.0)
+    assert summary["loops"]["temperature"]["overshoot_pct"] == pytest.approx(
+        PAPER_OS_TEMPERATURE, abs=1.0
+    )
+    for name in ("level", "temperature"):
+        png = out / f"{name}.png"
+        assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+    assert summary["messages"]["dropped_invalid"] == {}
+    assert summary["messages"]["published"]["loop/level/meas"] == 41
+    run = json.loads((out / "run.json").read_text())
+    assert run["endpoint"].startswith("tcp/127.0.0.1:")
+
+
+@pytest.mark.parametrize("scenario", [BENCHMARK, DELAY_CASE], ids=["benchmark", "delay"])
+def test_three_engines_give_the_same_traces(tmp_path, benchmark_run, scenario):
+    if scenario == BENCHMARK:
+        processes = benchmark_run[1]
+    else:
+        processes = wncs_run(scenario, tmp_path / "processes")
+    threads = wncs_run(scenario, tmp_path / "threads", "--engine", "threads")
+    direct = wncs_run(scenario, tmp_path / "direct", "--engine", "direct")
+    assert_same_traces(traces(processes), traces(direct))
+    assert_same_traces(traces(threads), traces(direct))
+    # and the summary equals the in-process direct engine's
+    assert_same_traces(traces(direct), traces(summarize(simulate(load_scenario(scenario)))))
+
+
+def test_same_seed_gives_identical_history(tmp_path, benchmark_run):
+    out1, _ = benchmark_run
+    wncs_run(BENCHMARK, tmp_path / "again", "--seed", "0")
+    assert messages_digest(out1 / "history.sqlite") == messages_digest(
+        tmp_path / "again" / "history.sqlite"
+    )
+
+
+def test_invalid_messages_are_dropped_counted_and_harmless(tmp_path, benchmark_run):
+    proc, info = start_run(BENCHMARK, tmp_path)
+    run_id = info["run_id"]
+    session = open_client(info["endpoint"])
+    sensor = keys.full(run_id, keys.sensor("reactor", "H"))
+    actuator = keys.full(run_id, keys.actuator("reactor", "F_out"))
+    forged = []
+    for round_ in (0, 10**6):
+        env = {"v": 1, "run": run_id, "src": "intruder", "seq": 1, "round": round_, "t": 0}
+        forged.append(msgpack.packb({**env, "body": {"value": "NaN?", "t_sampled": -1}}))
+    forged.append(msgpack.packb({"v": 1, "run": run_id}))  # envelope fields missing
+    stop = threading.Event()
+    sent = [0]
+
+    def pester():
+        while not stop.is_set():
+            for key in (sensor, actuator):
+                session.put(key, b"\x00\xffnot msgpack at all")
+                for raw in forged:
+                    session.put(key, raw)
+                sent[0] += 1
+            stop.wait(0.005)
+
+    th = threading.Thread(target=pester)
+    th.start()
+    try:
+        out, err = proc.communicate(timeout=300)
+    finally:
+        stop.set()
+        th.join()
+        session.close()
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    dropped = summary["messages"]["dropped_invalid"]
+    assert sent[0] > 0
+    assert dropped.get("plant/reactor/sensor/H", 0) > 0, dropped
+    assert dropped.get("plant/reactor/actuator/F_out", 0) > 0, dropped
+    assert_same_traces(traces(summary), traces(benchmark_run[1]), atol=0.0)
+
+
+def test_bad_scenario_is_refused_before_anything_starts(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    text = BENCHMARK.read_text().replace("tau_s: 0.1", "tau_s: -0.1", 1)
+    bad.write_text(text)
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [*WNCS, "run", str(bad), "--out", str(out)], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 2
+    assert str(bad) in proc.stderr and "loops.level.tau_s" in proc.stderr
+    assert not out.exists()  # nothing was started or written
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie is not running; reap-less children of the launcher are gone with it
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split()[2] != "Z"
+    except OSError:
+        return False
+
+
+def test_killing_a_controller_stops_the_run_naming_it(tmp_path):
+    proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "2.0")
+    session = open_client(info["endpoint"])
+    now = [0]
+    session.declare_subscriber(
+        keys.full(info["run_id"], keys.tick()),
+        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while now[0] < 500_000 and time.monotonic() < deadline:  # mid-run: t > 0.5 pu
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.02)
+        victim = info["nodes"]["level_controller"]
+        os.kill(victim, signal.SIGKILL)
+        killed = time.monotonic()
+        out, err = proc.communicate(timeout=60)
+        elapsed = time.monotonic() - killed
+    finally:
+        session.close()
+    assert proc.returncode not in (0, None)
+    assert "level_controller" in err and "round" in err, err
+    assert elapsed < 10.0, f"run took {elapsed:.1f} s to stop"
+    for name, pid in info["nodes"].items():
+        assert not _alive(pid), f"{name} (pid {pid}) still running"
+
+
+def test_liveliness_tokens_are_real(tmp_path):
+    """A node's zenoh token is visible to an outside session while the run goes on."""
+    proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0")
+    session = open_client(info["endpoint"])
+    seen: set[str] = set()
+    try:
+        sub = session.liveliness().declare_subscriber(
+            keys.full(info["run_id"], keys.alive_all()),
+            lambda s: (
+                seen.add(str(s.key_expr).rsplit("/", 1)[-1])
+                if s.kind == zenoh.SampleKind.PUT
+                else None
+            ),
+            history=True,
+        )
+        deadline = time.monotonic() + 60
+        while "reactor" not in seen and time.monotonic() < deadline:
+            time.sleep(0.05)
+        sub.undeclare()
+    finally:
+        session.close()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+    assert {"clock", "reactor", "historian", "level_controller"} <= seen
