@@ -101,3 +101,6 @@ class Stop(BaseModel):
     round: int = Field(ge=0, strict=True)
     t: int = Field(ge=0, strict=True)
     dropped_invalid: dict[str, int] = Field(default_factory=dict)
+    dropped_nodes: dict[str, int] = Field(
+        default_factory=dict, description="nodes dropped from the run -> round they left in"
+    )

@@ -133,6 +133,7 @@ class ClockRunner:
         self._seq = 0
         self.dropped_invalid: dict[str, dict[str, int]] = {}
         self.error: str | None = None
+        self.dropped_nodes: list[dict[str, object]] = []
 
     # -- bus plumbing ----------------------------------------------------------------------------
     def _full(self, rel: str) -> str:
@@ -168,11 +169,19 @@ class ClockRunner:
             self._alive.add(name)
             return
         self._alive.discard(name)
-        if name in self.participants and not self.planner.finished:
-            raise NodeFault(
-                f"node {name!r} left the run during round {self.planner.round} "
-                f"(t = {to_units(self.planner.t):.6f} {self.scenario.time_unit})"
+        if name not in self.participants or self.planner.finished:
+            return
+        unit = self.scenario.time_unit
+        where = f"round {self.planner.round} (t = {to_units(self.planner.t):.6f} {unit})"
+        if name in self.scenario.clock.may_drop:
+            log.warning("node %r left during %s; dropped, the run carries on", name, where)
+            self.participants = self.participants - {name}
+            self.planner.participants = self.participants
+            self.dropped_nodes.append(
+                {"node": name, "round": self.planner.round, "t": self.planner.t}
             )
+            return
+        raise NodeFault(f"node {name!r} left the run during {where}")
 
     # -- the run ---------------------------------------------------------------------------------
     def run(self) -> int:
@@ -213,6 +222,7 @@ class ClockRunner:
             round=self.planner.round,
             t=self.planner.t,
             dropped_invalid=dict(sorted(merged.items())),
+            dropped_nodes={d["node"]: d["round"] for d in self.dropped_nodes},
         )
 
     def _next(self, timeout: float) -> tuple[str, str, bytes | zenoh.SampleKind] | None:
@@ -244,7 +254,7 @@ class ClockRunner:
             self._publish(keys.tick(), tick)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
-            while len(dones) < len(self.participants):
+            while not self.participants <= set(dones):
                 item = self._next(deadline - time.monotonic())
                 if item is None:
                     silent = sorted(self.participants - set(dones))
@@ -270,7 +280,7 @@ class ClockRunner:
                 dones[done.node] = done
                 self.dropped_invalid[done.node] = done.dropped_invalid
             t_before = planner.t
-            planner.advance(dones)
+            planner.advance({n: d for n, d in dones.items() if n in self.participants})
             if planner.finished:
                 return
             if self.pacer is not None and planner.t > t_before:

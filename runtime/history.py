@@ -86,6 +86,7 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
     for name, cfg in sorted(scenario.nodes.items()):
         if cfg.kind == "plant":
             rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
+    moves: dict[str, dict[int, list[float]]] = {}
     with connect(path) as conn:
         rows = conn.execute("SELECT t, key, body FROM messages ORDER BY id")
         for t, key, body in rows:
@@ -99,7 +100,9 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     loop.y.append(float(value["value"]))
                     loop.t_sampled.append(int(value["t_sampled"]))
                 elif parts[2] == "u":
-                    loop.u.append(float(value["value"]))
+                    moves.setdefault(parts[1], {}).setdefault(int(value["t_computed"]), []).append(
+                        float(value["value"])
+                    )
             elif len(parts) == 3 and parts[:2] == ["ops", "setpoint"] and parts[2] in rec.loops:
                 rec.loops[parts[2]].setpoints.append(
                     (t, float(codec.unpack_mapping(body)["value"]))
@@ -111,6 +114,10 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     plant.t.append(t)
                     plant.x.append([float(values[s]) for s in plant.state_names])
         meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
+    for name, loop in rec.loops.items():  # pair each delivered sample with the move made from it
+        pending = moves.get(name, {})
+        loop.u = [pending[t].pop(0) if pending.get(t) else None for t in loop.t]
     stop = meta.get("stop") or {}
     rec.dropped_invalid = dict(stop.get("dropped_invalid", {}))
+    rec.dropped_nodes = dict(stop.get("dropped_nodes", {}))
     return rec

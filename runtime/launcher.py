@@ -317,7 +317,12 @@ def _run_processes(
         if code != 0:
             error = prog.stop.reason if prog.stop is not None else _last_error(logs / "clock.log")
         else:
-            failed = {n: p.returncode for n, p in procs.items() if p.returncode not in (0, None)}
+            dropped = set(prog.stop.dropped_nodes) if prog.stop is not None else set()
+            failed = {
+                n: p.returncode
+                for n, p in procs.items()
+                if p.returncode not in (0, None) and n not in dropped
+            }
             if failed:
                 code, error = 4, f"nodes exited with errors: {failed} (see {logs})"
         return code, error, t_started

@@ -25,7 +25,7 @@ class LoopRecord:
     sensor: str
     t: list[int] = field(default_factory=list)  # ticks of delivery = of the control move
     y: list[float] = field(default_factory=list)
-    u: list[float] = field(default_factory=list)
+    u: list[float | None] = field(default_factory=list)  # None: no move (controller lost)
     t_sampled: list[int] = field(default_factory=list)
     setpoints: list[tuple[int, float]] = field(default_factory=list)  # (ticks, value), from t=0
 
@@ -59,6 +59,7 @@ class RunRecord:
     published: dict[str, int] = field(default_factory=dict)
     dropped_invalid: dict[str, int] = field(default_factory=dict)
     lost: int = 0
+    dropped_nodes: dict[str, int] = field(default_factory=dict)
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -126,6 +127,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
             "dropped_invalid": dict(sorted(rec.dropped_invalid.items())),
             "lost": rec.lost,
         },
+        "dropped_nodes": dict(sorted(rec.dropped_nodes.items())),
         "wall_s": rec.wall_s,
         "phases_s": rec.phases,
     }

@@ -82,7 +82,9 @@ def write_plots(rec: RunRecord, out: Path) -> list[Path]:
         ax.step(sp_t, [*sp_v, sp_v[-1]], where="post", ls="--", color="k", label="set point")
         if loop.t:
             ax.plot([to_units(v) for v in loop.t], loop.y, ".", ms=3, label="delivered samples")
-            ax_u.step([to_units(v) for v in loop.t], loop.u, where="post", color="C2")
+            moves = [(to_units(t), u) for t, u in zip(loop.t, loop.u, strict=True) if u is not None]
+            if moves:
+                ax_u.step(*zip(*moves, strict=True), where="post", color="C2")
         ax.set_ylabel(loop.sensor)
         ax.set_title(f"{rec.scenario}: loop {name} ({rec.engine} engine)")
         ax.legend(loc="best", fontsize=8)

@@ -62,6 +62,11 @@ class ClockConfig(BaseModel):
     max_microsteps: int = Field(
         default=10_000, gt=0, description="rounds allowed at one instant before it is an error"
     )
+    may_drop: tuple[str, ...] = Field(
+        default=(),
+        description="nodes whose loss the run survives: the clock drops them and carries on "
+        "(a plant then holds its last inputs); losing any other node stops the run",
+    )
 
 
 class PlantNodeConfig(BaseModel):
@@ -239,6 +244,9 @@ class Scenario(BaseModel):
         for name, node in self.nodes.items():
             if node.kind == "controller" and name not in controlled:
                 raise ValueError(f"nodes.{name}.loop: no loop names {name!r} as its controller")
+        for i, name in enumerate(self.clock.may_drop):
+            if name not in self.nodes:
+                raise ValueError(f"clock.may_drop[{i}]: unknown node {name!r}")
         operators = [n for n, node in self.nodes.items() if node.kind == "operator"]
         if len(operators) > 1:
             raise ValueError(f"nodes: at most one operator node, found {operators}")

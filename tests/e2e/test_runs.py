@@ -30,6 +30,7 @@ from tests.conftest import (
     DELAY_CASE,
     PAPER_OS_LEVEL,
     PAPER_OS_TEMPERATURE,
+    write_variant,
 )
 
 pytestmark = pytest.mark.slow
@@ -243,3 +244,39 @@ def test_liveliness_tokens_are_real(tmp_path):
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=60)
     assert {"clock", "reactor", "historian", "level_controller"} <= seen
+
+
+def test_a_droppable_node_is_dropped_and_the_run_carries_on(tmp_path):
+    """clock.may_drop: losing the temperature controller leaves its actuator held; level goes on."""
+    scenario = write_variant(
+        tmp_path,
+        BENCHMARK,
+        "droppable.yaml",
+        lambda d: d.setdefault("clock", {}).update(may_drop=["temperature_controller"]),
+    )
+    proc, info = start_run(scenario, tmp_path / "out", "--realtime", "2.0")
+    session = open_client(info["endpoint"])
+    now = [0]
+    session.declare_subscriber(
+        keys.full(info["run_id"], keys.tick()),
+        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while now[0] < 1_000_000 and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.02)
+        os.kill(info["nodes"]["temperature_controller"], signal.SIGKILL)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        session.close()
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert list(summary["dropped_nodes"]) == ["temperature_controller"]
+    level = summary["loops"]["level"]["trace"]
+    temp = summary["loops"]["temperature"]["trace"]
+    assert level["t"][-1] == pytest.approx(4.0) and None not in level["u"]  # level ran on
+    # samples were still delivered, but no move was made after the controller died
+    answered = [t for t, u in zip(temp["t"], temp["u"], strict=True) if u is not None]
+    assert temp["t"][-1] == pytest.approx(4.0) and temp["u"][-1] is None
+    assert 1.0 <= answered[-1] < 4.0
