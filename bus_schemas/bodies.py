@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = ["Sample", "Move", "Setpoint", "PlantState", "Tick", "Done", "Stop"]
 
@@ -53,14 +53,26 @@ class Setpoint(BaseModel):
 
 
 class PlantState(BaseModel):
-    """A plant's continuous state, published on a fixed monitoring grid (``plant/<p>/state``).
+    """A plant's true state at the instants of its monitoring grid (``plant/<p>/state``).
 
-    These are the true values, not measurements; reports compute overshoot from them.
+    Not measurements: reports compute overshoot from them. The plant sends the grid points it
+    has passed since its last message, in a batch, whenever it samples (and at the end of the run),
+    so the record costs no clock rounds of its own.
     """
 
     model_config = _FROZEN
 
-    values: dict[str, float] = Field(description="state variables by name")
+    t: tuple[int, ...] = Field(description="grid instants, ticks")
+    values: dict[str, tuple[float, ...]] = Field(description="state variable -> one value per t")
+
+    @model_validator(mode="after")
+    def _same_lengths(self) -> PlantState:
+        for name, column in self.values.items():
+            if len(column) != len(self.t):
+                raise ValueError(f"values.{name}: {len(column)} values for {len(self.t)} times")
+            for v in column:
+                _finite(v)
+        return self
 
 
 class Tick(BaseModel):

@@ -1,10 +1,12 @@
 """The plant node: runs any plant model on the bus.
 
-It samples each sensor at its loop's ``tau_s`` (``plant/<p>/sensor/<s>``), records the true state
-on its monitoring grid (``plant/<p>/state``) and applies the commands it receives
-(``plant/<p>/actuator/<i>``) from their time on (zero-order hold). It integrates lazily: only up to
-instants where it samples, records or receives a command, so its trajectory does not depend on
-other nodes' timers (the ``direct`` engine integrates over exactly the same segments).
+It samples each sensor at its loop's ``tau_s`` (``plant/<p>/sensor/<s>``), applies the commands it
+receives (``plant/<p>/actuator/<i>``) from their time on (zero-order hold), and records its true
+state on a monitoring grid (``plant/<p>/state``, sent in batches when it samples and at the end).
+
+It integrates lazily, only up to instants where it samples or receives a command, cutting every
+segment at the monitoring grid: its trajectory does not depend on other nodes' timers, and the
+``direct`` engine integrates over exactly the same segments.
 """
 
 from __future__ import annotations
@@ -31,14 +33,28 @@ class PlantNode(Node):
         self.u = np.array([cfg.u0[s] for s in self.model.input_names], dtype=float)
         self.t_state = 0
         self.max_step = cfg.max_step
-        self.every(to_ticks(cfg.monitor_period), self._record)
+        self.monitor = to_ticks(cfg.monitor_period)
+        self.end = to_ticks(self.scenario.end_time)
+        self._next_record = 0
+        self._records_t: list[int] = []
+        self._records_x: list[list[float]] = []
         for loop in self.scenario.loops_of_plant(self.name).values():
             self.every(to_ticks(loop.tau_s), self._sampler(loop.sensor))
             self.subscribe(
                 keys.actuator(self.name, loop.actuator), Move, self._actuator(loop.actuator)
             )
+        self.at(self.end, self._final)
 
     def _integrate_to(self, t: int) -> None:
+        """Integrate to ``t``, stopping at (and recording) every monitoring instant on the way."""
+        while self._next_record <= t:
+            self._step_to(self._next_record)
+            self._records_t.append(self._next_record)
+            self._records_x.append(self.x.tolist())
+            self._next_record += self.monitor
+        self._step_to(t)
+
+    def _step_to(self, t: int) -> None:
         if t > self.t_state:
             self.x = rk4(
                 self.model.rhs,
@@ -50,10 +66,19 @@ class PlantNode(Node):
             )
             self.t_state = t
 
-    def _record(self) -> None:
+    def _send_records(self) -> None:
+        if not self._records_t:
+            return
+        columns = zip(*self._records_x, strict=True)
+        values = {n: tuple(c) for n, c in zip(self.model.state_names, columns, strict=True)}
+        self.publish(
+            keys.plant_state(self.name), PlantState(t=tuple(self._records_t), values=values)
+        )
+        self._records_t, self._records_x = [], []
+
+    def _final(self) -> None:
         self._integrate_to(self.now)
-        values = dict(zip(self.model.state_names, self.x.tolist(), strict=True))
-        self.publish(keys.plant_state(self.name), PlantState(values=values))
+        self._send_records()
 
     def _sampler(self, signal: str) -> Any:
         index = self.model.output_names.index(signal)
@@ -62,6 +87,7 @@ class PlantNode(Node):
             self._integrate_to(self.now)
             y = float(self.model.outputs(self.x)[index])
             self.publish(keys.sensor(self.name, signal), Sample(value=y, t_sampled=self.now))
+            self._send_records()
 
         return sample
 

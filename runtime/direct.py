@@ -79,15 +79,13 @@ class _Loop:
     record: LoopRecord
 
 
-def simulate(scenario: Scenario, *, record_plant: bool = True) -> RunRecord:
+def simulate(scenario: Scenario) -> RunRecord:
     """Simulate ``scenario`` directly and return its record.
 
     Parameters
     ----------
     scenario : Scenario
         A validated scenario; use :meth:`Scenario.with_loops` to vary ``tau_s`` / ``tau_d``.
-    record_plant : bool
-        Keep the true state on the monitoring grid (needed for overshoot figures).
     """
     wall0 = time.perf_counter()
     end = to_ticks(scenario.end_time)
@@ -137,7 +135,7 @@ def simulate(scenario: Scenario, *, record_plant: bool = True) -> RunRecord:
     heapq.heapify(schedule)
 
     def next_time() -> int | None:
-        cands = [p.next_monitor for p in plants.values() if record_plant]
+        cands = [p.next_monitor for p in plants.values()]
         for lp in loops.values():
             cands.append(lp.next_sample)
             if lp.deliveries:
@@ -153,7 +151,7 @@ def simulate(scenario: Scenario, *, record_plant: bool = True) -> RunRecord:
         tu = to_units(t)
         # 1. plants integrate to t if anything is due for them at t
         for p in plants.values():
-            due = record_plant and p.next_monitor == t
+            due = p.next_monitor == t
             due = due or any(
                 lp.plant is p and (lp.next_sample == t or (lp.commands and lp.commands[0][0] == t))
                 for lp in loops.values()
@@ -162,7 +160,7 @@ def simulate(scenario: Scenario, *, record_plant: bool = True) -> RunRecord:
                 p.integrate_to(t)
         # 2. monitoring record and sensor samples
         for p in plants.values():
-            if record_plant and p.next_monitor == t:
+            if p.next_monitor == t:
                 p.record.t.append(t)
                 p.record.x.append(p.x.tolist())
                 p.next_monitor += p.monitor

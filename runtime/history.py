@@ -110,9 +110,10 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
             elif len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
                 plant = rec.plants.get(parts[1])
                 if plant is not None:
-                    values = codec.unpack_mapping(body)["values"]
-                    plant.t.append(t)
-                    plant.x.append([float(values[s]) for s in plant.state_names])
+                    batch = codec.unpack_mapping(body)
+                    columns = [batch["values"][s] for s in plant.state_names]
+                    plant.t.extend(int(v) for v in batch["t"])
+                    plant.x.extend([float(v) for v in row] for row in zip(*columns, strict=True))
         meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
     for name, loop in rec.loops.items():  # pair each delivered sample with the move made from it
         pending = moves.get(name, {})

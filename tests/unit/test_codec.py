@@ -15,7 +15,7 @@ BODIES = [
     Sample(value=0.7, t_sampled=1_800_000),
     Move(value=1.25, t_computed=5),
     Setpoint(value=56.0),
-    PlantState(values={"H": 0.7, "T": 52.0, "T_j": 143.0}),
+    PlantState(t=(0, 10_000), values={"H": (0.7, 0.71), "T": (52.0, 52.1)}),
     Tick(round=3, t=100, expected={"loop/level/meas": 1}),
     Done(round=3, node="reactor", published={"plant/reactor/state": 1}, next_time=None),
     Stop(ok=False, reason="node 'x' left", round=9, t=10, dropped_invalid={"a/b": 2}),
@@ -63,6 +63,16 @@ def _raw(**over):
 def test_rejects_bad_input(raw, fragment):
     with pytest.raises(SchemaError, match=fragment.replace("(", r"\(")):
         codec.decode(raw, Sample)
+
+
+def test_plant_state_columns_must_match_times():
+    raw = codec.encode(
+        run="r", src="p", seq=0, round=0, t=0, body=PlantState(t=(0,), values={"H": (1.0,)})
+    )
+    env = msgpack.unpackb(raw)
+    env["body"]["values"]["H"] = [1.0, 2.0]
+    with pytest.raises(SchemaError, match="values.H: 2 values for 1 times"):
+        codec.decode(msgpack.packb(env), PlantState)
 
 
 def test_schema_error_is_a_value_error():
