@@ -1,0 +1,74 @@
+"""The node graph on a real zenoh router in one process (threads engine): fast bus checks."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import msgpack
+
+from bus_schemas import keys
+from runtime.bus import open_client
+from runtime.direct import simulate
+from runtime.history import messages_digest
+from runtime.launcher import launch
+from runtime.record import summarize
+from runtime.scenario import load_scenario
+from tests.conftest import BENCHMARK
+
+
+def _traces(summary):
+    return {n: lp["trace"] for n, lp in summary["loops"].items()}
+
+
+def test_threads_engine_equals_direct_and_is_reproducible(tmp_path):
+    a = launch(BENCHMARK, tmp_path / "a", engine="threads")
+    b = launch(BENCHMARK, tmp_path / "b", engine="threads")
+    assert a.code == 0 and b.code == 0, (a.error, b.error)
+    direct = summarize(simulate(load_scenario(BENCHMARK)))
+    assert _traces(a.summary) == _traces(direct)
+    assert messages_digest(tmp_path / "a" / "history.sqlite") == messages_digest(
+        tmp_path / "b" / "history.sqlite"
+    )
+    for name, loop in direct["loops"].items():
+        assert a.summary["loops"][name]["overshoot_pct"] == loop["overshoot_pct"]
+
+
+def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
+    out = tmp_path / "run"
+    result = {}
+    runner = threading.Thread(
+        target=lambda: result.update(r=launch(BENCHMARK, out, engine="threads", realtime=0.5))
+    )
+    runner.start()
+    deadline = time.monotonic() + 60
+    while not (out / "run.json").exists() or not json.loads((out / "run.json").read_text()).get(
+        "endpoint"
+    ):
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    info = json.loads((out / "run.json").read_text())
+    session = open_client(info["endpoint"])
+    key = keys.full(info["run_id"], keys.meas("level"))
+    bad_body = msgpack.packb(
+        {
+            "v": 1,
+            "run": info["run_id"],
+            "src": "intruder",
+            "seq": 0,
+            "round": 0,
+            "t": 0,
+            "body": {"value": 1.0},
+        }
+    )
+    while runner.is_alive():
+        session.put(key, b"garbage")
+        session.put(key, bad_body)
+        time.sleep(0.01)
+    runner.join()
+    session.close()
+    res = result["r"]
+    assert res.code == 0, res.error
+    assert res.summary["messages"]["dropped_invalid"]["loop/level/meas"] > 0
+    assert _traces(res.summary) == _traces(summarize(simulate(load_scenario(BENCHMARK))))
