@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from bus_schemas import Move, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
-from controllers.pi import PI
+from controllers.registry import build_law, uses_feedforward
 from runtime.node import Node, NodeContext
 from runtime.time import to_units
 
@@ -28,9 +28,10 @@ class ControllerNode(Node):
             n: lp.setpoint for n, lp in self.scenario.loops_of_plant(loop.plant).items()
         }
         self.feedforward = (
-            self.scenario.feedforward(self.loop) if cfg.law.feedforward == "steady_state" else None
+            self.scenario.feedforward(self.loop) if uses_feedforward(cfg.law) else None
         )
-        self.law = PI(cfg.law, u_bar=self._u_bar())
+        plant = self.scenario.nodes[loop.plant].build()
+        self.law = build_law(cfg.law, u_bar=self._u_bar(), plant=plant, tau_s=loop.tau_s)
         self._samples: list[Sample] = []
         self._setpoints_changed = False
         self.subscribe(keys.meas(self.loop), Sample, self._on_meas)
@@ -51,7 +52,7 @@ class ControllerNode(Node):
         return handle
 
     def after_dispatch(self) -> None:
-        if self._setpoints_changed:
+        if self._setpoints_changed and self.feedforward is not None:
             self.law.set_feedforward(self._u_bar())
             self._setpoints_changed = False
         for sample in self._samples:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.pi import PI
+from controllers.registry import build_law, uses_feedforward
 from plants.integrate import rk4
 from runtime.record import LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
@@ -71,7 +71,7 @@ class _Loop:
     tau_s: int
     tau_d: int
     tau_a: int
-    law: PI
+    law: Any
     feedforward: Any  # SteadyStateFeedforward or None
     next_sample: int
     deliveries: deque  # (t_deliver, y, t_sampled)
@@ -112,7 +112,7 @@ def simulate(scenario: Scenario) -> RunRecord:
     for name, lp in sorted(scenario.loops.items()):
         plant = plants[lp.plant]
         law_cfg = scenario.nodes[lp.controller].law
-        ff = scenario.feedforward(name) if law_cfg.feedforward == "steady_state" else None
+        ff = scenario.feedforward(name) if uses_feedforward(law_cfg) else None
         u_bar = ff.u_bar(scenario.plant_setpoints(lp.plant, setpoints)) if ff else 0.0
         loops[name] = _Loop(
             name=name,
@@ -122,7 +122,7 @@ def simulate(scenario: Scenario) -> RunRecord:
             tau_s=to_ticks(lp.tau_s),
             tau_d=to_ticks(lp.tau_d),
             tau_a=to_ticks(lp.tau_a),
-            law=PI(law_cfg, u_bar=u_bar),
+            law=build_law(law_cfg, u_bar=u_bar, plant=plant.model, tau_s=lp.tau_s),
             feedforward=ff,
             next_sample=0,
             deliveries=deque(),

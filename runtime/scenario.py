@@ -24,7 +24,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from bus_schemas import keys
-from controllers.pi import PIConfig
+from controllers.registry import LawConfig, uses_feedforward
 from plants import registry
 from runtime.errors import ConfigError
 from runtime.time import to_ticks
@@ -116,7 +116,7 @@ class ControllerNodeConfig(BaseModel):
 
     kind: Literal["controller"]
     loop: str
-    law: Annotated[PIConfig, Field(discriminator="type")]
+    law: LawConfig
 
 
 class NetworkNodeConfig(BaseModel):
@@ -274,7 +274,7 @@ class Scenario(BaseModel):
                 current[change.loop] = change.value
                 where = f"setpoints[{index}]"
             for lname, loop in self.loops.items():
-                if self.nodes[loop.controller].law.feedforward != "steady_state":
+                if not uses_feedforward(self.nodes[loop.controller].law):
                     continue
                 try:
                     self.feedforward(lname).u_bar(self.plant_setpoints(loop.plant, current))

@@ -1,0 +1,1 @@
+"""Seed 001: the maximum allowable update period of quasi-decentralized networked control."""
