@@ -27,6 +27,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/engines.py
 	$(BIN)/python bench/section3c.py
+	$(BIN)/python bench/realtime.py
 
 clean:
 	rm -rf $(VENV) runs

@@ -304,6 +304,16 @@ def _run_processes(
         while clock.poll() is None:
             if t_started is None and set(names) <= prog.alive:
                 t_started = time.perf_counter()
+            if t_started is None:  # a node that dies while starting: no need to wait for the clock
+                dead = {n: p.returncode for n, p in procs.items() if p.poll() not in (None, 0)}
+                if dead:
+                    name = sorted(dead)[0]
+                    tail = _log_tail(logs / f"{name}.log")
+                    return (
+                        2 if dead[name] == 2 else 1,
+                        (f"node {name!r} exited with code {dead[name]} while starting: {tail}"),
+                        None,
+                    )
             prog.show()
             time.sleep(0.05)
         code = clock.returncode
@@ -344,6 +354,14 @@ def _kill(p: subprocess.Popen) -> None:
         except (ProcessLookupError, PermissionError):
             pass
         p.wait()
+
+
+def _log_tail(path: Path) -> str:
+    try:
+        lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
+    except OSError:
+        return f"(no log at {path})"
+    return lines[-1] if lines else f"(empty log {path})"
 
 
 def _last_error(path: Path) -> str:
