@@ -12,15 +12,22 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
+from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
+from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
 from controllers.pi import PI, PIConfig
 
 __all__ = ["LAWS", "LawConfig", "build_law", "uses_feedforward"]
 
 LAWS: dict[str, type[Any]] = {
-    "pi": PI,
+    "pi": PI,  # seed 000: PI with steady-state feedforward
+    "nlpi": NonlinearPI,  # seed 002: feedback-linearizing 2-DOF PI
+    "pi2dof": TwoDofPI,  # seed 002: fixed-gain 2-DOF PI (the baseline)
+    "stnlpi": SelfTuningNLPI,  # seed 002: EW-RLS self-tuning non-linear PI
 }
 
-LawConfig = Annotated[PIConfig, Field(discriminator="type")]
+LawConfig = Annotated[
+    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig, Field(discriminator="type")
+]
 """The discriminated union of every law's configuration (``PIConfig | OtherConfig | ...``)."""
 
 

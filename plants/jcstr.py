@@ -84,9 +84,7 @@ class JCSTR:
         self._pi_d = math.pi * p.D
 
     # -- dynamics -------------------------------------------------------------------------------
-    def rhs(
-        self, t: float, x: NDArray[np.float64], u: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
+    def rhs(self, t: float, x: NDArray[np.float64], u: NDArray[np.float64]) -> NDArray[np.float64]:
         """Seed 000 eq. (4): time derivative of ``(H, T, T_j)`` under inputs ``(F_out, F_jin)``."""
         p = self.params
         h, temp, temp_j = x.tolist()
@@ -172,14 +170,25 @@ class JCSTR:
         A, B = self.jacobians(x, u)
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
         return control.ss(
-            A, B, C, np.zeros((2, 2)),
-            states=list(self.state_names), inputs=list(self.input_names),
+            A,
+            B,
+            C,
+            np.zeros((2, 2)),
+            states=list(self.state_names),
+            inputs=list(self.input_names),
             outputs=list(self.output_names),
         )
 
 
 BENCHMARK_PARAMS = JCSTRParams(
-    A_B=1.0, D=1.1283791670955126, U=0.1, rho=1.0, C_p=1.0, V_j=0.2,
-    F_in=1.0, T_in=20.0, T_jin=200.0,
+    A_B=1.0,
+    D=1.1283791670955126,
+    U=0.1,
+    rho=1.0,
+    C_p=1.0,
+    V_j=0.2,
+    F_in=1.0,
+    T_in=20.0,
+    T_jin=200.0,
 )
 """Our per-unit parameter set for the seed 000 benchmark (placeholder until calibrated)."""

@@ -38,11 +38,11 @@ class PlantNode(Node):
         self._next_record = 0
         self._records_t: list[int] = []
         self._records_x: list[list[float]] = []
+        self.noise = dict(cfg.noise)
         for loop in self.scenario.loops_of_plant(self.name).values():
             self.every(to_ticks(loop.tau_s), self._sampler(loop.sensor))
-            self.subscribe(
-                keys.actuator(self.name, loop.actuator), Move, self._actuator(loop.actuator)
-            )
+        for input_name in self.model.input_names:  # loop actuators and scheduled disturbances
+            self.subscribe(keys.actuator(self.name, input_name), Move, self._actuator(input_name))
         self.at(self.end, self._final)
 
     def _integrate_to(self, t: int) -> None:
@@ -82,10 +82,14 @@ class PlantNode(Node):
 
     def _sampler(self, signal: str) -> Any:
         index = self.model.output_names.index(signal)
+        sigma = self.noise.get(signal, 0.0)
+        rng = self.scenario.sensor_rng(self.name, signal)
 
         def sample() -> None:
             self._integrate_to(self.now)
             y = float(self.model.outputs(self.x)[index])
+            if sigma > 0.0:
+                y += sigma * float(rng.standard_normal())
             self.publish(keys.sensor(self.name, signal), Sample(value=y, t_sampled=self.now))
             self._send_records()
 

@@ -6,12 +6,16 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from plants.cstr_recycle import CSTRRecycle, CSTRRecycleParams
 from plants.jcstr import JCSTR, JCSTRParams
+from plants.tank import Tank, TankParams
 
 __all__ = ["MODELS", "build", "params_type"]
 
 MODELS: dict[str, tuple[type[Any], type[BaseModel]]] = {
     "jcstr": (JCSTR, JCSTRParams),
+    "tank": (Tank, TankParams),
+    "cstr_recycle": (CSTRRecycle, CSTRRecycleParams),
 }
 
 

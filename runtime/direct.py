@@ -77,6 +77,8 @@ class _Loop:
     deliveries: deque  # (t_deliver, y, t_sampled)
     commands: deque  # (t_arrive, u)
     record: LoopRecord
+    noise: float
+    rng: Any
 
 
 def simulate(scenario: Scenario) -> RunRecord:
@@ -127,12 +129,24 @@ def simulate(scenario: Scenario) -> RunRecord:
             next_sample=0,
             deliveries=deque(),
             commands=deque(),
-            record=LoopRecord(plant=lp.plant, sensor=lp.sensor, setpoints=[(0, lp.setpoint)]),
+            record=LoopRecord(
+                plant=lp.plant,
+                sensor=lp.sensor,
+                setpoints=[(0, lp.setpoint)],
+                settling_band=lp.settling_band,
+            ),
+            noise=scenario.nodes[lp.plant].noise.get(lp.sensor, 0.0),
+            rng=scenario.sensor_rng(lp.plant, lp.sensor),
         )
     schedule = sorted(
         ((to_ticks(c.t), i, c.loop, c.value) for i, c in enumerate(scenario.setpoints))
     )
     heapq.heapify(schedule)
+    disturbances = sorted(
+        (to_ticks(d.t), i, d.plant, plants[d.plant].model.input_names.index(d.input), d.value)
+        for i, d in enumerate(scenario.disturbances)
+    )
+    heapq.heapify(disturbances)
 
     def next_time() -> int | None:
         cands = [p.next_monitor for p in plants.values()]
@@ -144,6 +158,8 @@ def simulate(scenario: Scenario) -> RunRecord:
                 cands.append(lp.commands[0][0])
         if schedule:
             cands.append(schedule[0][0])
+        if disturbances:
+            cands.append(disturbances[0][0])
         return min(cands) if cands else None
 
     t = next_time()
@@ -152,6 +168,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         # 1. plants integrate to t if anything is due for them at t
         for p in plants.values():
             due = p.next_monitor == t
+            due = due or any(d[0] == t and d[2] == p.name for d in disturbances)
             due = due or any(
                 lp.plant is p and (lp.next_sample == t or (lp.commands and lp.commands[0][0] == t))
                 for lp in loops.values()
@@ -167,6 +184,8 @@ def simulate(scenario: Scenario) -> RunRecord:
         for lp in loops.values():
             if lp.next_sample == t:
                 y = float(lp.plant.model.outputs(lp.plant.x)[lp.y_index])
+                if lp.noise > 0.0:
+                    y += lp.noise * float(lp.rng.standard_normal())
                 lp.deliveries.append((t + lp.tau_d, y, t))
                 lp.next_sample += lp.tau_s
         # 3. set-point changes
@@ -191,7 +210,10 @@ def simulate(scenario: Scenario) -> RunRecord:
                 rec.u.append(u)
                 rec.t_sampled.append(t_sampled)
                 lp.commands.append((t + lp.tau_a, u))
-        # 5. commands arriving at t are applied from t on
+        # 5. commands and disturbances arriving at t are applied from t on
+        while disturbances and disturbances[0][0] == t:
+            _, _, plant_name, index, value = heapq.heappop(disturbances)
+            plants[plant_name].u[index] = value
         for lp in loops.values():
             while lp.commands and lp.commands[0][0] == t:
                 lp.plant.integrate_to(t)
@@ -206,6 +228,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         time_unit=scenario.time_unit,
         loops={n: lp.record for n, lp in loops.items()},
         plants={n: p.record for n, p in plants.items()},
+        disturbances=scenario.disturbance_times(),
     )
     rec.wall_s = time.perf_counter() - wall0
     rec.phases = {"run": rec.wall_s}

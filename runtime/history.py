@@ -80,9 +80,15 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
         engine=engine,
         end_time=to_ticks(scenario.end_time),
         time_unit=scenario.time_unit,
+        disturbances=scenario.disturbance_times(),
     )
     for name, lp in sorted(scenario.loops.items()):
-        rec.loops[name] = LoopRecord(plant=lp.plant, sensor=lp.sensor, setpoints=[(0, lp.setpoint)])
+        rec.loops[name] = LoopRecord(
+            plant=lp.plant,
+            sensor=lp.sensor,
+            setpoints=[(0, lp.setpoint)],
+            settling_band=lp.settling_band,
+        )
     for name, cfg in sorted(scenario.nodes.items()):
         if cfg.kind == "plant":
             rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))

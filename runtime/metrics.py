@@ -37,7 +37,14 @@ def _trapz(y: np.ndarray, t: np.ndarray) -> float:
 
 
 def step_metrics(
-    t: np.ndarray, y: np.ndarray, *, t_step: float, t_end: float, r_from: float, r_to: float
+    t: np.ndarray,
+    y: np.ndarray,
+    *,
+    t_step: float,
+    t_end: float,
+    r_from: float,
+    r_to: float,
+    band: float = SETTLING_BAND,
 ) -> StepMetrics:
     """Overshoot, settling time and IAE of the response ``y(t)`` to a step at ``t_step``.
 
@@ -49,12 +56,14 @@ def step_metrics(
         The window: from the step to the next step of the same loop, or the end of the run.
     r_from, r_to : float
         Set point before and after the step.
+    band : float
+        Settling band as a fraction of the step size (2 % by default).
 
     Returns
     -------
     StepMetrics
         ``overshoot_pct = 100 max(0, max sign (y - r_to)) / |r_to - r_from|``;
-        ``settling_time`` from the step until ``y`` stays within 2 % of the step size of
+        ``settling_time`` from the step until ``y`` stays within ``band`` of the step size of
         ``r_to`` to the end of the window (``None`` if it never does);
         ``iae`` the integral of ``|r_to - y|`` over the window.
     """
@@ -67,7 +76,7 @@ def step_metrics(
         return StepMetrics(t_step, r_from, r_to, 0.0, None, 0.0)
     sign = 1.0 if size > 0 else -1.0
     overshoot = max(0.0, float(np.max(sign * (yw - r_to)))) / abs(size) * 100.0
-    outside = np.nonzero(np.abs(yw - r_to) > SETTLING_BAND * abs(size))[0]
+    outside = np.nonzero(np.abs(yw - r_to) > band * abs(size))[0]
     if len(outside) == 0:
         settling: float | None = 0.0
     elif outside[-1] == len(tw) - 1:

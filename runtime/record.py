@@ -28,6 +28,7 @@ class LoopRecord:
     u: list[float | None] = field(default_factory=list)  # None: no move (controller lost)
     t_sampled: list[int] = field(default_factory=list)
     setpoints: list[tuple[int, float]] = field(default_factory=list)  # (ticks, value), from t=0
+    settling_band: float = 0.02
 
 
 @dataclass
@@ -60,12 +61,17 @@ class RunRecord:
     dropped_invalid: dict[str, int] = field(default_factory=dict)
     lost: int = 0
     dropped_nodes: dict[str, int] = field(default_factory=dict)
+    disturbances: dict[str, list[int]] = field(default_factory=dict)  # plant -> ticks
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
 
 def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
-    """Overshoot, settling time and IAE of loop ``name``, per step and overall."""
+    """Overshoot, settling time and IAE of loop ``name``, per step and overall.
+
+    Each step is judged over the window from the step to the loop's next step, the next scheduled
+    disturbance on its plant, or the end of the run, whichever comes first.
+    """
     loop = rec.loops[name]
     t, y = rec.plants[loop.plant].signal(loop.sensor)
     end = to_units(rec.end_time)
@@ -76,7 +82,18 @@ def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
         if r_to == r_from:
             continue
         t_next = to_units(changes[i + 1][0]) if i + 1 < len(changes) else end
-        m = step_metrics(t, y, t_step=to_units(t_step), t_end=t_next, r_from=r_from, r_to=r_to)
+        # a disturbance on the plant also ends the set-point response's window
+        cut = [to_units(d) for d in rec.disturbances.get(loop.plant, []) if d > t_step]
+        t_next = min([t_next, *cut])
+        m = step_metrics(
+            t,
+            y,
+            t_step=to_units(t_step),
+            t_end=t_next,
+            r_from=r_from,
+            r_to=r_to,
+            band=loop.settling_band,
+        )
         steps.append(
             {
                 "t": m.t,

@@ -38,6 +38,7 @@ __all__ = [
     "OperatorNodeConfig",
     "LoopConfig",
     "SetpointChange",
+    "Disturbance",
     "Scenario",
     "load_scenario",
     "parse_scenario",
@@ -83,6 +84,11 @@ class PlantNodeConfig(BaseModel):
         default=0.01, gt=0, description="period of the true-state record (plant/<p>/state)"
     )
     max_step: float = Field(default=0.005, gt=0, description="largest RK4 integration step")
+    noise: dict[str, float] = Field(
+        default_factory=dict,
+        description="sensor signal -> standard deviation of additive Gaussian measurement noise; "
+        "each signal draws from its own generator seeded from the scenario seed and its name",
+    )
 
     @model_validator(mode="after")
     def _check_model(self) -> PlantNodeConfig:
@@ -96,6 +102,14 @@ class PlantNodeConfig(BaseModel):
             e = err.errors()[0]
             loc = ".".join(str(p) for p in e["loc"])
             raise ValueError(f"params.{loc}: {e['msg']}") from err
+        for signal, sigma in self.noise.items():
+            if signal not in plant.output_names:
+                raise ValueError(
+                    f"noise.{signal}: not an output of {self.model!r} "
+                    f"(outputs: {list(plant.output_names)})"
+                )
+            if not sigma >= 0:
+                raise ValueError(f"noise.{signal}: standard deviation must be >= 0, got {sigma}")
         for field, names, given in (
             ("x0", plant.state_names, self.x0),
             ("u0", plant.input_names, self.u0),
@@ -160,6 +174,20 @@ class LoopConfig(BaseModel):
     tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
     tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
     setpoint: float = Field(description="set point at t = 0")
+    settling_band: float = Field(
+        default=0.02, gt=0, lt=1, description="settling band as a fraction of the step size"
+    )
+
+
+class Disturbance(BaseModel):
+    """A scheduled change of a plant input that no loop moves (e.g. a disturbance outflow)."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0)
+    plant: str
+    input: str
+    value: float
 
 
 class SetpointChange(BaseModel):
@@ -185,6 +213,7 @@ class Scenario(BaseModel):
     nodes: dict[str, NodeConfig]
     loops: dict[str, LoopConfig]
     setpoints: list[SetpointChange] = []
+    disturbances: list[Disturbance] = []
 
     @field_validator("nodes")
     @classmethod
@@ -252,6 +281,22 @@ class Scenario(BaseModel):
             raise ValueError(f"nodes: at most one operator node, found {operators}")
         if self.setpoints and not operators:
             raise ValueError("setpoints: a schedule needs an operator node to publish it")
+        if self.disturbances and not operators:
+            raise ValueError("disturbances: a schedule needs an operator node to publish it")
+        moved = {(lp.plant, lp.actuator) for lp in self.loops.values()}
+        for i, dist in enumerate(self.disturbances):
+            at = f"disturbances[{i}]"
+            plant_cfg = node_of("plant", dist.plant, f"{at}.plant")
+            inputs = plant_cfg.build().input_names
+            if dist.input not in inputs:
+                raise ValueError(
+                    f"{at}.input: plant {dist.plant!r} has no input {dist.input!r} "
+                    f"(inputs: {list(inputs)})"
+                )
+            if (dist.plant, dist.input) in moved:
+                raise ValueError(f"{at}.input: {dist.input!r} is moved by a loop's controller")
+            if dist.t > self.end_time:
+                raise ValueError(f"{at}.t: {dist.t} is after end_time {self.end_time}")
         for i, change in enumerate(self.setpoints):
             if change.loop not in self.loops:
                 raise ValueError(
@@ -298,6 +343,23 @@ class Scenario(BaseModel):
         plant = self.nodes[lp.plant].build()
         outputs = {n: other.sensor for n, other in self.loops_of_plant(lp.plant).items()}
         return SteadyStateFeedforward(plant, outputs, lp.actuator)
+
+    def disturbance_times(self) -> dict[str, list[int]]:
+        """Plant -> sorted ticks of its scheduled disturbances."""
+        out: dict[str, list[int]] = {}
+        for d in self.disturbances:
+            out.setdefault(d.plant, []).append(to_ticks(d.t))
+        return {p: sorted(v) for p, v in out.items()}
+
+    def sensor_rng(self, plant: str, signal: str) -> Any:
+        """The seeded generator of one sensor's measurement noise (the plant node owns it)."""
+        import zlib
+
+        import numpy as np
+
+        return np.random.default_rng(
+            [self.seed, zlib.crc32(plant.encode()), zlib.crc32(signal.encode())]
+        )
 
     def participants(self) -> list[str]:
         """Every node that takes part in clock rounds: the scenario's nodes and the historian."""

@@ -1,8 +1,12 @@
-"""Operator node: publishes each scheduled set-point change on ``ops/setpoint/<loop>``."""
+"""Operator node: publishes the scenario's schedules at their times.
+
+Set-point changes go on ``ops/setpoint/<loop>``; disturbances (inputs no loop moves, such as a
+draw-off flow) go straight to the plant's actuator key ``plant/<p>/actuator/<input>``.
+"""
 
 from __future__ import annotations
 
-from bus_schemas import Setpoint, keys
+from bus_schemas import Move, Setpoint, keys
 from runtime.node import Node, NodeContext
 from runtime.time import to_ticks
 
@@ -14,6 +18,12 @@ class OperatorNode(Node):
         super().__init__(ctx)
         for change in self.scenario.setpoints:
             self.at(to_ticks(change.t), self._publisher(change.loop, change.value))
+        for dist in self.scenario.disturbances:
+            self.at(to_ticks(dist.t), self._disturber(dist.plant, dist.input, dist.value))
 
     def _publisher(self, loop: str, value: float):  # noqa: ANN202
         return lambda: self.publish(keys.setpoint(loop), Setpoint(value=value))
+
+    def _disturber(self, plant: str, input_name: str, value: float):  # noqa: ANN202
+        key = keys.actuator(plant, input_name)
+        return lambda: self.publish(key, Move(value=value, t_computed=self.now))

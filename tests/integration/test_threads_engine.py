@@ -72,3 +72,21 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
     assert res.code == 0, res.error
     assert res.summary["messages"]["dropped_invalid"]["loop/level/meas"] > 0
     assert _traces(res.summary) == _traces(summarize(simulate(load_scenario(BENCHMARK))))
+
+
+def test_tank_scenarios_over_the_bus_equal_direct(tmp_path):
+    """Seed 002's loops (non-linear PI; self-tuning with seeded measurement noise) on the bus."""
+    import yaml
+
+    from tests.conftest import SCENARIOS
+
+    short = yaml.safe_load((SCENARIOS / "tank_sim.yaml").read_text())
+    short["end_time"] = 40.0  # through the first disturbance; keeps the test quick
+    short["setpoints"] = short["setpoints"][:1]
+    short["disturbances"] = short["disturbances"][:2]
+    path = tmp_path / "tank_sim_short.yaml"
+    path.write_text(yaml.safe_dump(short))
+    for scenario in (path, SCENARIOS / "tank_rig.yaml"):
+        res = launch(scenario, tmp_path / scenario.stem, engine="threads")
+        assert res.code == 0, res.error
+        assert _traces(res.summary) == _traces(summarize(simulate(load_scenario(scenario))))
