@@ -30,8 +30,11 @@ from tests.conftest import (
     DELAY_CASE,
     PAPER_OS_LEVEL,
     PAPER_OS_TEMPERATURE,
+    SCENARIOS,
     write_variant,
 )
+
+TANK_RIG = SCENARIOS / "tank_rig.yaml"
 
 pytestmark = pytest.mark.slow
 
@@ -105,7 +108,9 @@ def test_benchmark_by_processes_matches_the_paper(benchmark_run):
     assert run["endpoint"].startswith("tcp/127.0.0.1:")
 
 
-@pytest.mark.parametrize("scenario", [BENCHMARK, DELAY_CASE], ids=["benchmark", "delay"])
+@pytest.mark.parametrize(
+    "scenario", [BENCHMARK, DELAY_CASE, TANK_RIG], ids=["benchmark", "delay", "tank_rig"]
+)
 def test_three_engines_give_the_same_traces(tmp_path, benchmark_run, scenario):
     if scenario == BENCHMARK:
         processes = benchmark_run[1]
