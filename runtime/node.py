@@ -170,11 +170,11 @@ class Node:
         try:
             return self._serve()
         finally:
+            # Leaving: the token first (the clock sees us go), subscribers and publishers with the
+            # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
+            # and makes zenoh log "Unknown token".
             token.undeclare()
-            for d in declared:
-                d.undeclare()
-            for p in self._publishers.values():
-                p.undeclare()
+            self._declared = declared
 
     def _serve(self) -> int:
         while True:
