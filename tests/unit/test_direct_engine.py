@@ -139,8 +139,10 @@ def test_benchmark_overshoots_match_the_paper():
 
 
 def test_trace_contract():
-    summary = summarize(simulate(load_scenario(BENCHMARK)))
-    for loop in summary["loops"].values():
+    s = load_scenario(BENCHMARK)
+    summary = summarize(simulate(s))
+    for name, loop in summary["loops"].items():
         tr = loop["trace"]
-        assert len(tr["t"]) == len(tr["y"]) == len(tr["u"]) == 41  # 0, 0.1, ..., 4.0
+        n = round(s.end_time / s.loops[name].tau_s) + 1  # 0, tau_s, ..., end_time
+        assert len(tr["t"]) == len(tr["y"]) == len(tr["u"]) == n
         assert tr["t"] == sorted(tr["t"])
