@@ -73,6 +73,21 @@ def start_run(scenario: Path, out: Path, *extra: str) -> tuple[subprocess.Popen,
     raise AssertionError("run.json never named the endpoint and nodes")
 
 
+def wait_for_virtual_time(session, info: dict, proc: subprocess.Popen, ticks: int) -> None:
+    """Block until the run's clock has reached ``ticks`` (watching its ticks on the bus)."""
+    now = [0]
+    sub = session.declare_subscriber(
+        keys.full(info["run_id"], keys.tick()),
+        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
+    )
+    deadline = time.monotonic() + 120
+    while now[0] < ticks:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, f"virtual time stuck at {now[0]}"
+        time.sleep(0.02)
+    sub.undeclare()
+
+
 def traces(summary: dict) -> dict:
     return {name: loop["trace"] for name, loop in summary["loops"].items()}
 
@@ -203,16 +218,8 @@ def _alive(pid: int) -> bool:
 def test_killing_a_controller_stops_the_run_naming_it(tmp_path):
     proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "2.0")
     session = open_client(info["endpoint"])
-    now = [0]
-    session.declare_subscriber(
-        keys.full(info["run_id"], keys.tick()),
-        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
-    )
     try:
-        deadline = time.monotonic() + 120
-        while now[0] < 500_000 and time.monotonic() < deadline:  # mid-run: t > 0.5 pu
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.02)
+        wait_for_virtual_time(session, info, proc, 500_000)  # mid-run: t > 0.5 pu
         victim = info["nodes"]["level_controller"]
         os.kill(victim, signal.SIGKILL)
         killed = time.monotonic()
@@ -263,16 +270,8 @@ def test_a_droppable_node_is_dropped_and_the_run_carries_on(tmp_path):
     )
     proc, info = start_run(scenario, tmp_path / "out", "--realtime", "2.0")
     session = open_client(info["endpoint"])
-    now = [0]
-    session.declare_subscriber(
-        keys.full(info["run_id"], keys.tick()),
-        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
-    )
     try:
-        deadline = time.monotonic() + 120
-        while now[0] < 1_000_000 and time.monotonic() < deadline:
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.02)
+        wait_for_virtual_time(session, info, proc, 1_000_000)
         os.kill(info["nodes"]["temperature_controller"], signal.SIGKILL)
         out, err = proc.communicate(timeout=120)
     finally:
