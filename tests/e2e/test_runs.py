@@ -286,4 +286,4 @@ def test_a_droppable_node_is_dropped_and_the_run_carries_on(tmp_path):
     # samples were still delivered, but no move was made after the controller died
     answered = [t for t, u in zip(temp["t"], temp["u"], strict=True) if u is not None]
     assert temp["t"][-1] == pytest.approx(end) and temp["u"][-1] is None
-    assert 1.0 <= answered[-1] < end
+    assert 0.9 <= answered[-1] < end  # killed once the clock reached 1.0: maybe before its move
