@@ -157,10 +157,11 @@ def test_psi_satisfies_the_error_equation_4_16_and_the_printed_one_does_not():
     # (4.17) prints psi[1, 1] = -b22 x2: a change of theta2 alone then moves e2 by b22, not b21
     d2 = np.eye(8)[1]
     x1 = np.array([1.0, 1.0])
-    want2 = -b @ np.array([[0.0, 1.0], [0.0, 0.0]]) @ x1  # -B dL x with dL = [[0, 1], [0, 0]]
-    assert_allclose(psi(x1, uc, b) @ d2, want2, atol=1e-15)
-    printed = psi(x1, uc, b)
-    printed[1, 1] = -b[1, 1] * x1[1]
+    bm = THESIS_B_M
+    want2 = -bm @ np.array([[0.0, 1.0], [0.0, 0.0]]) @ x1  # -B dL x with dL = [[0, 1], [0, 0]]
+    assert_allclose(psi(x1, uc, bm) @ d2, want2, atol=1e-15)
+    printed = psi(x1, uc, bm)
+    printed[1, 1] = -bm[1, 1] * x1[1]
     assert abs(printed[1] @ d2 - want2[1]) > 5 * abs(want2[1])
 
 
@@ -262,7 +263,7 @@ def test_continuous_law_makes_the_lyapunov_function_non_increasing():
     """Eq. (4.18)-(4.20) on a fixed perturbed plant without disturbance: dV/dt <= 0, e -> 0."""
     plant = PerturbedReducedPlant(np.random.default_rng(7))
     a, b = plant.A, plant.B
-    gamma = 2000.0
+    gamma = 5000.0
     cfg = MRACConfig(gamma=gamma, T=T, B0=tuple(map(tuple, b)))  # the law knows the plant's B
     th0 = compatibility_theta(a, b, THESIS_A_M, THESIS_B_M)
     f = continuous_loop_rhs(a, b, cfg)
@@ -276,7 +277,7 @@ def test_continuous_law_makes_the_lyapunov_function_non_increasing():
         z = rk4(f, k * 0.05, z, (k + 1) * 0.05, w, max_step=0.01)
     vs = np.array(vs)
     assert np.all(np.diff(vs) <= 1e-9 * vs[0])
-    assert es[-1] < 0.05 * max(es)
+    assert es[-1] < 0.1 * max(es)
 
 
 # -- the thesis's test (section 6.3.1, appendix G) ----------------------------------------------
@@ -320,7 +321,7 @@ def test_divergence_is_detected_and_reported():
     assert_allclose(ctrl.theta, frozen)  # no more adaptation
     ctrl.reset()
     assert not ctrl.diverged and ctrl.theta_drift == 0.0
-    # below the divergence threshold (about 7600-8500 at T = 0.1 h) nothing is flagged
+    # below the divergence threshold (about 4600-5600 at T = 0.1 h) nothing is flagged
     plant = PerturbedReducedPlant(np.random.default_rng(0))
     assert not _thesis_loop(3000.0, plant, 100)[3].diverged
 
