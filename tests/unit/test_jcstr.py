@@ -23,7 +23,7 @@ def test_equilibrium_solves_f_zero(h_bar, t_bar):
     def residual(z):
         return PLANT.rhs(0.0, np.array([h_bar, t_bar, z[0]]), np.array([z[1], z[2]]))
 
-    z = fsolve(residual, [130.0, 0.9, 0.4], xtol=1e-12)
+    z = fsolve(residual, [140.0, BENCHMARK_PARAMS.F_in, 0.4], xtol=1e-12)
     assert_allclose([x_bar[2], *u_bar], z, rtol=1e-8)
 
 
