@@ -105,9 +105,15 @@ class JCSTR:
     # -- dynamics -------------------------------------------------------------------------------
     def rhs(self, t: float, x: NDArray[np.float64], u: NDArray[np.float64]) -> NDArray[np.float64]:
         """Seed 000 eq. (4): time derivative of ``(H, T, T_j)`` under inputs ``(F_out, F_jin)``."""
+        return np.array(self.rhs_tuple(t, tuple(x.tolist()), tuple(u.tolist())))
+
+    def rhs_tuple(
+        self, t: float, x: tuple[float, ...], u: tuple[float, ...]
+    ) -> tuple[float, float, float]:
+        """:meth:`rhs` on plain floats (what the fixed-step integrator calls)."""
         p = self.params
-        h, temp, temp_j = x.tolist()
-        f_out, f_jin = u.tolist()
+        h, temp, temp_j = x
+        f_out, f_jin = u
         dh = (p.F_in - f_out) / p.A_B
         if h <= 0.0 and dh < 0.0:
             dh = 0.0  # an empty tank cannot drain further
@@ -115,7 +121,7 @@ class JCSTR:
         q = self._alpha * (p.A_B + self._pi_d * h_eff) * (temp_j - temp)  # U A_H (Tj-T)/(rho Cp)
         d_temp = (p.F_in * (p.T_in - temp) + q) / (p.A_B * h_eff)
         d_temp_j = (f_jin * (p.T_jin - temp_j) - q) / p.V_j
-        return np.array((dh, d_temp, d_temp_j))
+        return (dh, d_temp, d_temp_j)
 
     def outputs(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Measured outputs ``(H, T)``."""

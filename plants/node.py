@@ -17,7 +17,7 @@ import numpy as np
 
 from bus_schemas import Move, PlantState, Sample, keys
 from bus_schemas.envelope import RawEnvelope
-from plants.integrate import rk4
+from plants.integrate import integrator_of
 from runtime.node import Node, NodeContext
 from runtime.time import to_ticks, to_units
 
@@ -33,6 +33,7 @@ class PlantNode(Node):
         self.u = np.array([cfg.u0[s] for s in self.model.input_names], dtype=float)
         self.t_state = 0
         self.max_step = cfg.max_step
+        self._step = integrator_of(self.model)
         self.monitor = to_ticks(cfg.monitor_period)
         self.end = to_ticks(self.scenario.end_time)
         self._next_record = 0
@@ -56,13 +57,8 @@ class PlantNode(Node):
 
     def _step_to(self, t: int) -> None:
         if t > self.t_state:
-            self.x = rk4(
-                self.model.rhs,
-                to_units(self.t_state),
-                self.x,
-                to_units(t),
-                self.u,
-                max_step=self.max_step,
+            self.x = self._step(
+                to_units(self.t_state), self.x, to_units(t), self.u, max_step=self.max_step
             )
             self.t_state = t
 

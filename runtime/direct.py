@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from controllers.registry import build_law, uses_feedforward
-from plants.integrate import rk4
+from plants.integrate import integrator_of
 from runtime.record import LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
 from runtime.time import to_ticks, to_units
@@ -48,16 +48,12 @@ class _Plant:
     next_monitor: int
     max_step: float
     record: PlantRecord
+    step: Any
 
     def integrate_to(self, t: int) -> None:
         if t > self.t:
-            self.x = rk4(
-                self.model.rhs,
-                to_units(self.t),
-                self.x,
-                to_units(t),
-                self.u,
-                max_step=self.max_step,
+            self.x = self.step(
+                to_units(self.t), self.x, to_units(t), self.u, max_step=self.max_step
             )
             self.t = t
 
@@ -107,6 +103,7 @@ def simulate(scenario: Scenario) -> RunRecord:
             next_monitor=0,
             max_step=cfg.max_step,
             record=PlantRecord(tuple(model.state_names)),
+            step=integrator_of(model),
         )
 
     setpoints = {name: lp.setpoint for name, lp in scenario.loops.items()}

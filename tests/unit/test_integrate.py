@@ -29,3 +29,15 @@ def test_empty_segment_returns_the_state():
     x0 = np.array([0.7, 52.0, 140.0])
     x = rk4(PLANT.rhs, 1.0, x0, 1.0, np.array([1.0, 0.5]), max_step=0.005)
     assert np.array_equal(x, x0) and x is not x0
+
+
+def test_tuple_integrator_is_bit_identical_to_the_numpy_one():
+    from plants.integrate import integrator_of, rk4_tuple
+
+    x0 = (0.66, 50.0, 143.0)
+    u = (9.0, 0.8)
+    a = rk4(PLANT.rhs, 0.1, np.array(x0), 0.87, np.array(u), max_step=0.005)
+    b = rk4_tuple(PLANT.rhs_tuple, 0.1, x0, 0.87, u, max_step=0.005)
+    assert a.tolist() == list(b)  # exactly, not approximately: engines must agree bit for bit
+    step = integrator_of(PLANT)
+    assert step(0.1, np.array(x0), 0.87, np.array(u), max_step=0.005).tolist() == list(b)
