@@ -5,6 +5,7 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 
 from bus_schemas.bodies import (
     Done,
+    Loss,
     Move,
     PlantState,
     Sample,
@@ -18,6 +19,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "Envelope",
     "Done",
+    "Loss",
     "Move",
     "PlantState",
     "Sample",

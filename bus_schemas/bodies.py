@@ -6,10 +6,11 @@ Bodies are frozen and forbid extra fields; time is integer ticks, never float.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-__all__ = ["Sample", "Move", "Setpoint", "PlantState", "Tick", "Done", "Stop"]
+__all__ = ["Sample", "Move", "Setpoint", "PlantState", "Loss", "Tick", "Done", "Stop"]
 
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 
@@ -73,6 +74,16 @@ class PlantState(BaseModel):
             for v in column:
                 _finite(v)
         return self
+
+
+class Loss(BaseModel):
+    """A packet the network could not deliver (``net/lost``): retries exhausted or no route."""
+
+    model_config = _FROZEN
+
+    loop: str
+    direction: Literal["sensor", "actuator"]
+    t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
 
 
 class Tick(BaseModel):

@@ -29,6 +29,7 @@ __all__ = [
     "move",
     "setpoint",
     "setpoint_all",
+    "net_lost",
 ]
 
 PREFIX = "wncs"
@@ -110,6 +111,11 @@ def meas(loop: str) -> str:
 def move(loop: str) -> str:
     """Controller output, before the network."""
     return f"loop/{check_name(loop, 'loop')}/u"
+
+
+def net_lost() -> str:
+    """Packets the network lost (one message per packet)."""
+    return "net/lost"
 
 
 def setpoint(loop: str) -> str:

@@ -1,20 +1,23 @@
-"""The network node: carries the loops that name it, with constant path delays.
+"""The network node: carries the loops that name it, wired (``kind: network``) or over a WSN
+(``kind: gateway``).
 
-Sensor samples (``plant/<p>/sensor/<s>``) are delivered on ``loop/<l>/meas`` after the loop's
-``tau_d``; control moves (``loop/<l>/u``) on ``plant/<p>/actuator/<i>`` after ``tau_a``. A zero
-delay forwards within the same instant (a microstep). A pending delivery is a timer, so in
-real-time mode the delay passes in wall time through the same clock. This is the wired network;
-the WSN gateway emulator extends it with multi-hop delay models, loss and energy.
+Sensor samples (``plant/<p>/sensor/<s>``) are delivered on ``loop/<l>/meas``; control moves
+(``loop/<l>/u``) on ``plant/<p>/actuator/<i>``. When a packet arrives, its delivery time comes from
+:class:`gateway.carrier.PathCarrier` (constant delays, or per-hop delays with retries and loss
+drawn from the path's own seeded generator); a lost packet is reported on ``net/lost`` and never
+delivered. A
+delivery due now is published in this round (a microstep), a later one is a timer, so in
+real-time mode delays pass in wall time through the same clock.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from bus_schemas import Move, Sample, keys
+from bus_schemas import Loss, Move, Sample, keys
 from bus_schemas.envelope import RawEnvelope
+from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
-from runtime.time import to_ticks
 
 __all__ = ["NetworkNode"]
 
@@ -22,26 +25,29 @@ __all__ = ["NetworkNode"]
 class NetworkNode(Node):
     def __init__(self, ctx: NodeContext) -> None:
         super().__init__(ctx)
-        self.delivered = 0
-        for name, loop in sorted(self.scenario.loops.items()):
-            if loop.network != self.name:
-                continue
+        self.carrier = PathCarrier(self.scenario, self.name)
+        for name, loop in self.carrier.loops.items():
             self.subscribe(
                 keys.sensor(loop.plant, loop.sensor),
                 Sample,
-                self._path(keys.meas(name), to_ticks(loop.tau_d)),
+                self._path(name, SENSOR, keys.meas(name)),
             )
             self.subscribe(
                 keys.move(name),
                 Move,
-                self._path(keys.actuator(loop.plant, loop.actuator), to_ticks(loop.tau_a)),
+                self._path(name, ACTUATOR, keys.actuator(loop.plant, loop.actuator)),
             )
 
-    def _path(self, out_key: str, delay: int) -> Any:
+    def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:
-            if delay == 0:
+            t = self.carrier.deliver(loop, direction, self.now)
+            if t is None:
+                self.publish(
+                    keys.net_lost(), Loss(loop=loop, direction=direction, t_ready=self.now)
+                )
+            elif t == self.now:
                 self.publish(out_key, body)
             else:
-                self.at(self.now + delay, lambda: self.publish(out_key, body))
+                self.at(t, lambda: self.publish(out_key, body))
 
         return forward

@@ -7,11 +7,12 @@ agent to call it thousands of times. At each instant ``t`` (integer ticks):
 
 1. each plant with something due at ``t`` (a sensor sample, a monitoring instant, an arriving
    command) integrates from its last stop to ``t`` (plant node: timers / actuator handler);
-2. monitoring record and sensor samples at ``t``; samples enter their loop's path with delay
-   ``tau_d`` (network node);
+2. monitoring record and sensor samples at ``t``; samples enter their loop's sensor path, whose
+   delivery time (or loss) comes from the same :class:`~gateway.carrier.PathCarrier` the
+   network node uses (constant ``tau_d``, or drawn over a WSN);
 3. set-point changes due at ``t`` update set points and feedforwards (operator -> controllers);
 4. samples delivered at ``t`` are handed to their controllers, which compute moves with the set
-   points of ``t`` (controller node, after its messages); moves enter the actuator path ``tau_a``;
+   points of ``t`` (controller node, after its messages); moves enter the actuator path;
 5. commands arriving at ``t`` are applied from ``t`` on (zero-order hold).
 
 A plant integrates only to instants it has something to do at, so its trajectory does not depend
@@ -21,14 +22,15 @@ on other nodes' timers.
 from __future__ import annotations
 
 import heapq
+import itertools
 import time
-from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from controllers.registry import build_law, uses_feedforward
+from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, path_hops
 from plants.integrate import integrator_of
 from runtime.record import LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
@@ -65,13 +67,12 @@ class _Loop:
     y_index: int
     u_index: int
     tau_s: int
-    tau_d: int
-    tau_a: int
+    carrier: Any  # gateway.carrier.PathCarrier of the loop's network node
     law: Any
     feedforward: Any  # SteadyStateFeedforward or None
     next_sample: int
-    deliveries: deque  # (t_deliver, y, t_sampled)
-    commands: deque  # (t_arrive, u)
+    deliveries: list  # heap of (t_deliver, order, y, t_sampled)
+    commands: list  # heap of (t_arrive, order, u)
     record: LoopRecord
     noise: float
     rng: Any
@@ -106,6 +107,12 @@ def simulate(scenario: Scenario) -> RunRecord:
             step=integrator_of(model),
         )
 
+    carriers = {
+        name: PathCarrier(scenario, name)
+        for name, cfg in sorted(scenario.nodes.items())
+        if cfg.kind in ("network", "gateway")
+    }
+    order = itertools.count()  # FIFO among packets due at the same instant, as the node's timers
     setpoints = {name: lp.setpoint for name, lp in scenario.loops.items()}
     loops: dict[str, _Loop] = {}
     for name, lp in sorted(scenario.loops.items()):
@@ -119,13 +126,12 @@ def simulate(scenario: Scenario) -> RunRecord:
             y_index=plant.model.output_names.index(lp.sensor),
             u_index=plant.model.input_names.index(lp.actuator),
             tau_s=to_ticks(lp.tau_s),
-            tau_d=to_ticks(lp.tau_d),
-            tau_a=to_ticks(lp.tau_a),
+            carrier=carriers[lp.network],
             law=build_law(law_cfg, u_bar=u_bar, plant=plant.model, tau_s=lp.tau_s),
             feedforward=ff,
             next_sample=0,
-            deliveries=deque(),
-            commands=deque(),
+            deliveries=[],
+            commands=[],
             record=LoopRecord(
                 plant=lp.plant,
                 sensor=lp.sensor,
@@ -183,7 +189,12 @@ def simulate(scenario: Scenario) -> RunRecord:
                 y = float(lp.plant.model.outputs(lp.plant.x)[lp.y_index])
                 if lp.noise > 0.0:
                     y += lp.noise * float(lp.rng.standard_normal())
-                lp.deliveries.append((t + lp.tau_d, y, t))
+                lp.record.sent += 1
+                t_deliver = lp.carrier.deliver(lp.name, SENSOR, t)
+                if t_deliver is None:
+                    lp.record.lost += 1
+                else:
+                    heapq.heappush(lp.deliveries, (t_deliver, next(order), y, t))
                 lp.next_sample += lp.tau_s
         # 3. set-point changes
         changed_plants = set()
@@ -199,14 +210,18 @@ def simulate(scenario: Scenario) -> RunRecord:
         # 4. deliveries -> control moves
         for lp in loops.values():
             while lp.deliveries and lp.deliveries[0][0] == t:
-                _, y, t_sampled = lp.deliveries.popleft()
+                _, _, y, t_sampled = heapq.heappop(lp.deliveries)
                 u = lp.law.step(tu, y, setpoints[lp.name])
                 rec = lp.record
                 rec.t.append(t)
                 rec.y.append(y)
                 rec.u.append(u)
                 rec.t_sampled.append(t_sampled)
-                lp.commands.append((t + lp.tau_a, u))
+                t_arrive = lp.carrier.deliver(lp.name, ACTUATOR, t)
+                if t_arrive is None:
+                    lp.record.lost_moves += 1
+                else:
+                    heapq.heappush(lp.commands, (t_arrive, next(order), u))
         # 5. commands and disturbances arriving at t are applied from t on
         while disturbances and disturbances[0][0] == t:
             _, _, plant_name, index, value = heapq.heappop(disturbances)
@@ -214,7 +229,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         for lp in loops.values():
             while lp.commands and lp.commands[0][0] == t:
                 lp.plant.integrate_to(t)
-                lp.plant.u[lp.u_index] = lp.commands.popleft()[1]
+                lp.plant.u[lp.u_index] = heapq.heappop(lp.commands)[2]
         t = next_time()
 
     rec = RunRecord(
@@ -226,6 +241,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         loops={n: lp.record for n, lp in loops.items()},
         plants={n: p.record for n, p in plants.items()},
         disturbances=scenario.disturbance_times(),
+        hops=path_hops(scenario),
     )
     rec.wall_s = time.perf_counter() - wall0
     rec.phases = {"run": rec.wall_s}

@@ -22,7 +22,8 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-from bus_schemas import codec
+from bus_schemas import codec, keys
+from gateway.carrier import path_hops
 from runtime.record import LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
 
@@ -81,6 +82,7 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
         end_time=to_ticks(scenario.end_time),
         time_unit=scenario.time_unit,
         disturbances=scenario.disturbance_times(),
+        hops=path_hops(scenario),
     )
     for name, lp in sorted(scenario.loops.items()):
         rec.loops[name] = LoopRecord(
@@ -109,6 +111,14 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     moves.setdefault(parts[1], {}).setdefault(int(value["t_computed"]), []).append(
                         float(value["value"])
                     )
+            elif key == keys.net_lost():
+                loss = codec.unpack_mapping(body)
+                if loss["loop"] in rec.loops:
+                    lost_loop = rec.loops[loss["loop"]]
+                    if loss["direction"] == "sensor":
+                        lost_loop.lost += 1
+                    else:
+                        lost_loop.lost_moves += 1
             elif len(parts) == 3 and parts[:2] == ["ops", "setpoint"] and parts[2] in rec.loops:
                 rec.loops[parts[2]].setpoints.append(
                     (t, float(codec.unpack_mapping(body)["value"]))
@@ -121,6 +131,9 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     plant.t.extend(int(v) for v in batch["t"])
                     plant.x.extend([float(v) for v in row] for row in zip(*columns, strict=True))
         meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
+    for name, loop in rec.loops.items():
+        lp = scenario.loops[name]
+        loop.sent = rec.published.get(keys.sensor(lp.plant, lp.sensor), 0)
     for name, loop in rec.loops.items():  # pair each delivered sample with the move made from it
         pending = moves.get(name, {})
         loop.u = [pending[t].pop(0) if pending.get(t) else None for t in loop.t]

@@ -16,6 +16,7 @@ NODE_CLASSES: dict[str, type[Node]] = {
     "plant": PlantNode,
     "controller": ControllerNode,
     "network": NetworkNode,
+    "gateway": NetworkNode,
     "operator": OperatorNode,
 }
 

@@ -29,6 +29,11 @@ class LoopRecord:
     t_sampled: list[int] = field(default_factory=list)
     setpoints: list[tuple[int, float]] = field(default_factory=list)  # (ticks, value), from t=0
     settling_band: float = 0.02
+    sent: int = 0  # samples taken by the loop's sensor (delivered ones are in t/y)
+    lost: int = (
+        0  # samples the network lost (the rest of sent - delivered was in flight at the end)
+    )
+    lost_moves: int = 0  # control moves lost on the actuator path
 
 
 @dataclass
@@ -62,6 +67,7 @@ class RunRecord:
     lost: int = 0
     dropped_nodes: dict[str, int] = field(default_factory=dict)
     disturbances: dict[str, list[int]] = field(default_factory=dict)  # plant -> ticks
+    hops: dict[str, int] = field(default_factory=dict)  # loop -> sensor-path hops (0: wired)
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -121,6 +127,24 @@ def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
     }
 
 
+def path_stats(rec: RunRecord) -> dict[str, dict[str, Any]]:
+    """Per loop sensor path: hops, delivered delays (mean, p95, max; time units), sent, lost."""
+    out = {}
+    for name, loop in sorted(rec.loops.items()):
+        delays = np.array([to_units(d - s) for d, s in zip(loop.t, loop.t_sampled, strict=True)])
+        out[name] = {
+            "hops": rec.hops.get(name, 0),
+            "delay_mean": float(delays.mean()) if len(delays) else None,
+            "delay_p95": float(np.percentile(delays, 95)) if len(delays) else None,
+            "delay_max": float(delays.max()) if len(delays) else None,
+            "sent": loop.sent,
+            "lost": loop.lost,
+            "in_flight_at_end": loop.sent - len(loop.t) - loop.lost,
+            "moves_lost": loop.lost_moves,
+        }
+    return out
+
+
 def summarize(rec: RunRecord) -> dict[str, Any]:
     """The ``summary.json`` contract of a run (see README, "Run artefacts")."""
     loops = {}
@@ -132,6 +156,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
             "u": list(loop.u),
         }
         loops[name] = entry
+    paths = path_stats(rec)
     return {
         "scenario": rec.scenario,
         "seed": rec.seed,
@@ -142,8 +167,9 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
         "messages": {
             "published": dict(sorted(rec.published.items())),
             "dropped_invalid": dict(sorted(rec.dropped_invalid.items())),
-            "lost": rec.lost,
+            "lost": rec.lost + sum(p["lost"] + p["moves_lost"] for p in paths.values()),
         },
+        "network": {"paths": paths},
         "dropped_nodes": dict(sorted(rec.dropped_nodes.items())),
         "wall_s": rec.wall_s,
         "phases_s": rec.phases,

@@ -40,6 +40,7 @@ def save_record(rec: RunRecord, out: Path) -> None:
         "time_unit": rec.time_unit,
         "loops": {n: vars(lp) for n, lp in rec.loops.items()},
         "disturbances": rec.disturbances,
+        "hops": rec.hops,
         "plants": {
             n: {"state_names": p.state_names, "t": p.t, "x": p.x} for n, p in rec.plants.items()
         },
@@ -56,6 +57,7 @@ def load_saved_record(out: Path) -> RunRecord:
         data["scenario"], data["seed"], data["engine"], data["end_time"], data["time_unit"]
     )
     rec.disturbances = data.get("disturbances", {})
+    rec.hops = data.get("hops", {})
     for n, lp in data["loops"].items():
         lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
         rec.loops[n] = LoopRecord(**lp)

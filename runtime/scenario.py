@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
+from gateway.topology import TopologyConfig
 from plants import registry
 from runtime.errors import ConfigError
 from runtime.time import to_ticks
@@ -35,6 +36,7 @@ __all__ = [
     "PlantNodeConfig",
     "ControllerNodeConfig",
     "NetworkNodeConfig",
+    "GatewayNodeConfig",
     "OperatorNodeConfig",
     "LoopConfig",
     "SetpointChange",
@@ -146,6 +148,28 @@ class NetworkNodeConfig(BaseModel):
     kind: Literal["network"]
 
 
+class GatewayNodeConfig(BaseModel):
+    """A WSN gateway: the loops naming it have their sensor (and optionally actuator) paths
+    routed over its topology, with per-hop delays, retries and loss (``gateway/``)."""
+
+    model_config = _STRICT
+
+    kind: Literal["gateway"]
+    topology: TopologyConfig
+
+    @model_validator(mode="after")
+    def _one_gateway(self) -> GatewayNodeConfig:
+        self.gateway_node()
+        return self
+
+    def gateway_node(self) -> str:
+        """The topology's node of kind ``gateway``."""
+        names = [n for n, spec in self.topology.nodes.items() if spec.kind == "gateway"]
+        if len(names) != 1:
+            raise ValueError(f"topology.nodes: exactly one node of kind gateway, found {names}")
+        return names[0]
+
+
 class OperatorNodeConfig(BaseModel):
     """Publishes the scenario's set-point schedule on ``ops/setpoint/<loop>``."""
 
@@ -155,7 +179,11 @@ class OperatorNodeConfig(BaseModel):
 
 
 NodeConfig = Annotated[
-    PlantNodeConfig | ControllerNodeConfig | NetworkNodeConfig | OperatorNodeConfig,
+    PlantNodeConfig
+    | ControllerNodeConfig
+    | NetworkNodeConfig
+    | GatewayNodeConfig
+    | OperatorNodeConfig,
     Field(discriminator="kind"),
 ]
 
@@ -173,6 +201,13 @@ class LoopConfig(BaseModel):
     tau_s: float = Field(gt=0, description="sampling period of the loop's sensor")
     tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
     tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
+    sensor_node: str | None = Field(
+        default=None, description="gateway networks: the topology node hosting the sensor"
+    )
+    actuator_node: str | None = Field(
+        default=None,
+        description="gateway networks: the topology node hosting the actuator; None = wired",
+    )
     setpoint: float = Field(description="set point at t = 0")
     settling_band: float = Field(
         default=0.02, gt=0, lt=1, description="settling band as a fraction of the step size"
@@ -267,7 +302,28 @@ class Scenario(BaseModel):
                     f"loop {controlled[loop.controller]!r}"
                 )
             controlled[loop.controller] = lname
-            node_of("network", loop.network, f"{at}.network")
+            net = self.nodes.get(loop.network)
+            if net is not None and net.kind == "gateway":
+                topo_nodes = net.topology.nodes
+                if loop.sensor_node not in topo_nodes:
+                    raise ValueError(
+                        f"{at}.sensor_node: {loop.sensor_node!r} is not a node of the topology of "
+                        f"{loop.network!r} (nodes: {sorted(topo_nodes)})"
+                    )
+                if loop.actuator_node is not None and loop.actuator_node not in topo_nodes:
+                    raise ValueError(
+                        f"{at}.actuator_node: {loop.actuator_node!r} is not a node "
+                        f"of the topology of {loop.network!r}"
+                    )
+                if loop.tau_d:
+                    raise ValueError(
+                        f"{at}.tau_d: a gateway's paths take their delays from its "
+                        "topology; leave tau_d at 0"
+                    )
+            else:
+                node_of("network", loop.network, f"{at}.network")
+                if loop.sensor_node is not None or loop.actuator_node is not None:
+                    raise ValueError(f"{at}.sensor_node: only loops over a gateway name WSN nodes")
             if to_ticks(loop.tau_s) < 1:
                 raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
         for name, node in self.nodes.items():

@@ -35,6 +35,7 @@ from tests.conftest import (
 )
 
 TANK_RIG = SCENARIOS / "tank_rig.yaml"
+WSN = SCENARIOS / "jcstr_wsn.yaml"
 
 pytestmark = pytest.mark.slow
 
@@ -126,7 +127,9 @@ def test_benchmark_by_processes_matches_the_paper(benchmark_run):
 
 
 @pytest.mark.parametrize(
-    "scenario", [BENCHMARK, DELAY_CASE, TANK_RIG], ids=["benchmark", "delay", "tank_rig"]
+    "scenario",
+    [BENCHMARK, DELAY_CASE, TANK_RIG, WSN],
+    ids=["benchmark", "delay", "tank_rig", "wsn"],
 )
 def test_three_engines_give_the_same_traces(tmp_path, benchmark_run, scenario):
     if scenario == BENCHMARK:

@@ -90,3 +90,25 @@ def test_tank_scenarios_over_the_bus_equal_direct(tmp_path):
         res = launch(scenario, tmp_path / scenario.stem, engine="threads")
         assert res.code == 0, res.error
         assert _traces(res.summary) == _traces(summarize(simulate(load_scenario(scenario))))
+
+
+def test_wsn_paths_with_losses_over_the_bus_equal_direct(tmp_path):
+    """Random per-hop delays, retries and losses: the bus delivers exactly what direct does."""
+    from tests.conftest import SCENARIOS, write_variant
+
+    def lossy(d):
+        d["end_time"] = 3.0
+        d["setpoints"] = d["setpoints"][:1]
+        topo = d["nodes"]["network"]["topology"]
+        topo["retry_limit"] = 1
+        for link in topo["links"]:
+            link["prr"] = 0.7
+
+    path = write_variant(tmp_path, SCENARIOS / "jcstr_wsn.yaml", "lossy.yaml", lossy)
+    res = launch(path, tmp_path / "run", engine="threads")
+    assert res.code == 0, res.error
+    direct = summarize(simulate(load_scenario(path)))
+    assert _traces(res.summary) == _traces(direct)
+    assert res.summary["network"] == direct["network"]
+    assert res.summary["network"]["paths"]["level"]["lost"] > 0
+    assert res.summary["messages"]["lost"] == direct["messages"]["lost"] > 0

@@ -1,0 +1,72 @@
+"""Loop paths over a wired network and over a WSN gateway (gateway/carrier.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, path_hops
+from runtime.direct import simulate
+from runtime.errors import ConfigError
+from runtime.record import summarize
+from runtime.scenario import load_scenario
+from runtime.time import to_ticks
+from tests.conftest import BENCHMARK, SCENARIOS, write_variant
+
+WSN = SCENARIOS / "jcstr_wsn.yaml"
+
+
+def test_wired_paths_are_constant():
+    s = load_scenario(BENCHMARK).with_loops(tau_d={"level": 0.17})
+    c = PathCarrier(s, "network")
+    assert c.deliver("level", SENSOR, 1000) == 1000 + to_ticks(0.17)
+    assert c.deliver("level", ACTUATOR, 1000) == 1000
+    assert path_hops(s) == {"level": 0, "temperature": 0}
+
+
+def test_wsn_paths_have_the_scenarios_mean_delays():
+    s = load_scenario(WSN)
+    assert path_hops(s) == {"level": 3, "temperature": 2}
+    c = PathCarrier(s, "network")
+    for loop, mean in (("level", 0.17), ("temperature", 0.10)):
+        assert c.routes[loop, SENSOR].mean_delay == pytest.approx(mean, rel=1e-4)
+        delays = [c.deliver(loop, SENSOR, 0) for _ in range(4000)]
+        got = np.mean([d for d in delays if d is not None]) / 1e6
+        assert got == pytest.approx(mean, rel=0.03)  # 4000 draws: well inside 3 %
+    assert c.deliver("level", ACTUATOR, 500) == 500  # actuator paths wired
+
+
+def test_each_path_draws_from_its_own_seeded_generator():
+    s = load_scenario(WSN)
+    a, b = PathCarrier(s, "network"), PathCarrier(s, "network")
+    seq_a = [a.deliver("level", SENSOR, 0) for _ in range(50)]
+    for _ in range(7):  # drawing on another path does not change this path's draws
+        b.deliver("temperature", SENSOR, 0)
+    assert [b.deliver("level", SENSOR, 0) for _ in range(50)] == seq_a
+    other_seed = PathCarrier(s.model_copy(update={"seed": 1}), "network")
+    assert [other_seed.deliver("level", SENSOR, 0) for _ in range(50)] != seq_a
+
+
+def test_a_path_without_route_loses_everything(tmp_path):
+    def cut(d):
+        topo = d["nodes"]["network"]["topology"]
+        topo["links"] = [ln for ln in topo["links"] if {ln["a"], ln["b"]} != {"r1", "r2"}]
+
+    s = load_scenario(write_variant(tmp_path, WSN, "cut.yaml", cut))
+    assert path_hops(s)["level"] == -1
+    summary = summarize(simulate(s))
+    level = summary["network"]["paths"]["level"]
+    assert level["lost"] == level["sent"] > 0
+    assert summary["loops"]["level"]["trace"]["t"] == []
+    assert summary["messages"]["lost"] == level["lost"]
+
+
+def test_gateway_loops_are_validated(tmp_path):
+    bad = write_variant(
+        tmp_path, WSN, "bad.yaml", lambda d: d["loops"]["level"].update(sensor_node="s_nowhere")
+    )
+    with pytest.raises(ConfigError, match="loops.level.sensor_node: 's_nowhere'"):
+        load_scenario(bad)
+    bad = write_variant(tmp_path, WSN, "bad2.yaml", lambda d: d["loops"]["level"].update(tau_d=0.1))
+    with pytest.raises(ConfigError, match="loops.level.tau_d: a gateway's paths"):
+        load_scenario(bad)
