@@ -144,3 +144,10 @@ def test_assess_csv_end_to_end_matches_arrays(tmp_path):
     assert d["source"] == str(p) and d["ranking"] == ["T2"]
     assert d["recommendation"]["secondary"] == "T2"
     json.dumps(d, allow_nan=False)
+
+
+def test_binary_file_is_refused(tmp_path):
+    p = tmp_path / "dump.csv"
+    p.write_bytes(b"PV;T2\n\xff\xfe\x00\x01;2\n")
+    with pytest.raises(DataError, match="not a readable"):
+        load_routine_csv(p, ["PV"], ";")
