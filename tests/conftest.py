@@ -43,6 +43,23 @@ def write_variant(tmp_path: Path, base: Path, name: str, edit) -> Path:
     return path
 
 
+def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) -> None:
+    """Wait for a condition that has no event to wait on (a file another process writes).
+
+    Checks ``predicate`` every ``interval`` seconds (on an ``Event`` that is never set) and fails
+    with ``what`` after ``timeout`` seconds. Bus conditions wait on zenoh callbacks instead.
+    """
+    import threading
+    import time
+
+    ticker = threading.Event()
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        ticker.wait(interval)
+
+
 @pytest.fixture(scope="session")
 def router():
     """A real zenoh router in this process on a free loopback port: ``(session, endpoint)``."""

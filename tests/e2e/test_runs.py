@@ -31,6 +31,7 @@ from tests.conftest import (
     PAPER_OS_LEVEL,
     PAPER_OS_TEMPERATURE,
     SCENARIOS,
+    wait_until,
     write_variant,
 )
 
@@ -62,30 +63,35 @@ def start_run(scenario: Path, out: Path, *extra: str) -> tuple[subprocess.Popen,
         text=True,
     )
     run_file = out / "run.json"
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        if run_file.exists():
-            info = json.loads(run_file.read_text())
-            if info.get("endpoint") and info.get("nodes"):
-                return proc, info
+
+    def announced() -> bool:
         assert proc.poll() is None, proc.communicate()
-        time.sleep(0.05)
-    proc.kill()
-    raise AssertionError("run.json never named the endpoint and nodes")
+        if not run_file.exists():
+            return False
+        info = json.loads(run_file.read_text())
+        return bool(info.get("endpoint") and info.get("nodes"))
+
+    try:
+        wait_until(announced, timeout=60, what="run.json naming the endpoint and the nodes")
+    except AssertionError:
+        proc.kill()
+        raise
+    return proc, json.loads(run_file.read_text())
 
 
 def wait_for_virtual_time(session, info: dict, proc: subprocess.Popen, ticks: int) -> None:
     """Block until the run's clock has reached ``ticks`` (watching its ticks on the bus)."""
-    now = [0]
-    sub = session.declare_subscriber(
-        keys.full(info["run_id"], keys.tick()),
-        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
-    )
+    reached = threading.Event()
+
+    def on_tick(sample) -> None:
+        if codec.decode(sample.payload.to_bytes(), Tick).body.t >= ticks:
+            reached.set()
+
+    sub = session.declare_subscriber(keys.full(info["run_id"], keys.tick()), on_tick)
     deadline = time.monotonic() + 120
-    while now[0] < ticks:
+    while not reached.wait(0.5):
         assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, f"virtual time stuck at {now[0]}"
-        time.sleep(0.02)
+        assert time.monotonic() < deadline, f"virtual time never reached {ticks} ticks"
     sub.undeclare()
 
 
@@ -242,20 +248,20 @@ def test_liveliness_tokens_are_real(tmp_path):
     proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0")
     session = open_client(info["endpoint"])
     seen: set[str] = set()
+    expected = {"clock", "reactor", "historian", "level_controller"}
+    all_seen = threading.Event()
+
+    def on_token(sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            seen.add(str(sample.key_expr).rsplit("/", 1)[-1])
+            if expected <= seen:
+                all_seen.set()
+
     try:
         sub = session.liveliness().declare_subscriber(
-            keys.full(info["run_id"], keys.alive_all()),
-            lambda s: (
-                seen.add(str(s.key_expr).rsplit("/", 1)[-1])
-                if s.kind == zenoh.SampleKind.PUT
-                else None
-            ),
-            history=True,
+            keys.full(info["run_id"], keys.alive_all()), on_token, history=True
         )
-        deadline = time.monotonic() + 60
-        expected = {"clock", "reactor", "historian", "level_controller"}
-        while not expected <= seen and time.monotonic() < deadline:
-            time.sleep(0.05)
+        all_seen.wait(60)
         sub.undeclare()
     finally:
         session.close()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import msgpack
 
@@ -15,7 +14,7 @@ from runtime.history import messages_digest
 from runtime.launcher import launch
 from runtime.record import summarize
 from runtime.scenario import load_scenario
-from tests.conftest import BENCHMARK
+from tests.conftest import BENCHMARK, wait_until
 
 
 def _traces(summary):
@@ -42,12 +41,12 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
         target=lambda: result.update(r=launch(BENCHMARK, out, engine="threads", realtime=0.5))
     )
     runner.start()
-    deadline = time.monotonic() + 60
-    while not (out / "run.json").exists() or not json.loads((out / "run.json").read_text()).get(
-        "endpoint"
-    ):
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+
+    def announced() -> bool:
+        run = out / "run.json"
+        return run.exists() and bool(json.loads(run.read_text()).get("endpoint"))
+
+    wait_until(announced, timeout=60, what="run.json with the router endpoint")
     info = json.loads((out / "run.json").read_text())
     session = open_client(info["endpoint"])
     key = keys.full(info["run_id"], keys.meas("level"))
@@ -65,7 +64,7 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
     while runner.is_alive():
         session.put(key, b"garbage")
         session.put(key, bad_body)
-        time.sleep(0.01)
+        runner.join(0.01)  # pace the garbage; stop as soon as the run ends
     runner.join()
     session.close()
     res = result["r"]
