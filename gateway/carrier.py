@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from gateway.paths import Route, deliver
-from gateway.topology import PathSpec, Topology
+from gateway.topology import Topology
 from runtime.time import to_ticks
 
 __all__ = ["PathCarrier", "path_hops", "SENSOR", "ACTUATOR"]
@@ -92,10 +92,6 @@ class PathCarrier:
         if route is None:
             return None  # no route: the path is down and its packets are lost
         return deliver(route, t_ready, self._rng[loop, direction]).t_deliver
-
-    @staticmethod
-    def path_spec(src: str, dst: str) -> PathSpec:
-        return PathSpec(src=src, dst=dst)
 
 
 def path_hops(scenario: Any) -> dict[str, int]:

@@ -315,7 +315,10 @@ def _run_processes(
                         None,
                     )
             prog.show()
-            time.sleep(0.05)
+            try:
+                clock.wait(timeout=0.05)
+            except subprocess.TimeoutExpired:
+                pass
         code = clock.returncode
         deadline = time.monotonic() + _EXIT_GRACE_S
         for name, p in procs.items():

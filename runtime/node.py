@@ -174,7 +174,7 @@ class Node:
             # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
             # and makes zenoh log "Unknown token".
             token.undeclare()
-            self._declared = declared
+            self._declared = declared  # keep the declarations alive until the session closes
 
     def _serve(self) -> int:
         while True:
