@@ -10,7 +10,17 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-__all__ = ["Sample", "Move", "Setpoint", "PlantState", "Loss", "Tick", "Done", "Stop"]
+__all__ = [
+    "Sample",
+    "Move",
+    "Setpoint",
+    "PlantState",
+    "Loss",
+    "NetApplied",
+    "Tick",
+    "Done",
+    "Stop",
+]
 
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 
@@ -84,6 +94,16 @@ class Loss(BaseModel):
     loop: str
     direction: Literal["sensor", "actuator"]
     t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
+
+
+class NetApplied(BaseModel):
+    """The network's configuration now in force (``net/applied``): at start and after each event."""
+
+    model_config = _FROZEN
+
+    event: str = Field(description="'initial', or the type of the event that caused it")
+    source: Literal["initial", "scenario", "injected"]
+    hops: dict[str, int] = Field(description="path '<loop>.<direction>' -> hops (-1: down)")
 
 
 class Tick(BaseModel):

@@ -30,6 +30,7 @@ __all__ = [
     "setpoint",
     "setpoint_all",
     "net_lost",
+    "net_applied",
 ]
 
 PREFIX = "wncs"
@@ -111,6 +112,11 @@ def meas(loop: str) -> str:
 def move(loop: str) -> str:
     """Controller output, before the network."""
     return f"loop/{check_name(loop, 'loop')}/u"
+
+
+def net_applied() -> str:
+    """The network configuration in force, after each change."""
+    return "net/applied"
 
 
 def net_lost() -> str:

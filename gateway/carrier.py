@@ -75,6 +75,30 @@ class PathCarrier:
                 topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
                 self.routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
         self.topology = topology
+        self.events = (
+            sorted(
+                ((to_ticks(e.t), i, e.event) for i, e in enumerate(cfg.events)),
+                key=lambda x: (x[0], x[1]),
+            )
+            if cfg.kind == "gateway"
+            else []
+        )
+
+    def apply(self, event: Any) -> dict[str, int]:
+        """Apply a reconfiguration event; reroute every path; return path -> hops after it."""
+        if self.topology is None:
+            raise ValueError(f"{self.node}: a wired network has no topology to reconfigure")
+        routes = self.topology.apply(event).routes
+        for loop, direction in list(self.routes):
+            self.routes[loop, direction] = routes[f"{loop}.{direction}"]
+        return self.configuration()
+
+    def configuration(self) -> dict[str, int]:
+        """Path (``<loop>.<direction>``) -> hops now (-1: down) for the routed paths."""
+        return {
+            f"{loop}.{direction}": (-1 if route is None else route.n_hops)
+            for (loop, direction), route in sorted(self.routes.items())
+        }
 
     def hops(self, loop: str, direction: str = SENSOR) -> int:
         """Hops of a path (0 for a wired path; -1 when the path is down)."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from bus_schemas import Loss, Move, Sample, keys
+from bus_schemas import Loss, Move, NetApplied, Sample, keys
 from bus_schemas.envelope import RawEnvelope
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
@@ -26,6 +26,10 @@ class NetworkNode(Node):
     def __init__(self, ctx: NodeContext) -> None:
         super().__init__(ctx)
         self.carrier = PathCarrier(self.scenario, self.name)
+        if self.carrier.topology is not None:
+            self.at(0, self._announce("initial", "initial", None))
+            for t, _, event in self.carrier.events:
+                self.at(t, self._announce(event.type, "scenario", event))
         for name, loop in self.carrier.loops.items():
             self.subscribe(
                 keys.sensor(loop.plant, loop.sensor),
@@ -37,6 +41,14 @@ class NetworkNode(Node):
                 Move,
                 self._path(name, ACTUATOR, keys.actuator(loop.plant, loop.actuator)),
             )
+
+    def _announce(self, kind: str, source: str, event: Any) -> Any:
+        def apply() -> None:
+            hops = self.carrier.configuration() if event is None else self.carrier.apply(event)
+            self.log.info("network configuration (%s %s): %s", source, kind, hops)
+            self.publish(keys.net_applied(), NetApplied(event=kind, source=source, hops=hops))
+
+        return apply
 
     def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:

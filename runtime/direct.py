@@ -113,6 +113,13 @@ def simulate(scenario: Scenario) -> RunRecord:
         if cfg.kind in ("network", "gateway")
     }
     order = itertools.count()  # FIFO among packets due at the same instant, as the node's timers
+    configurations: list[dict[str, Any]] = []
+    net_events = []  # (t, network node, index, event or None for the initial announcement)
+    for cname, carrier in carriers.items():
+        if carrier.topology is not None:
+            net_events.append((0, cname, -1, None))
+            net_events += [(t_ev, cname, i, ev) for t_ev, i, ev in carrier.events]
+    net_events.sort(key=lambda e: (e[0], e[1], e[2]))
     setpoints = {name: lp.setpoint for name, lp in scenario.loops.items()}
     loops: dict[str, _Loop] = {}
     for name, lp in sorted(scenario.loops.items()):
@@ -163,6 +170,8 @@ def simulate(scenario: Scenario) -> RunRecord:
             cands.append(schedule[0][0])
         if disturbances:
             cands.append(disturbances[0][0])
+        if net_events:
+            cands.append(net_events[0][0])
         return min(cands) if cands else None
 
     t = next_time()
@@ -178,6 +187,19 @@ def simulate(scenario: Scenario) -> RunRecord:
             )
             if due:
                 p.integrate_to(t)
+        # 1b. network reconfigurations due at t (the gateway's timers: before any packet at t)
+        while net_events and net_events[0][0] == t:
+            _, cname, _, event = net_events.pop(0)
+            carrier = carriers[cname]
+            hops = carrier.configuration() if event is None else carrier.apply(event)
+            configurations.append(
+                {
+                    "t": t,
+                    "event": "initial" if event is None else event.type,
+                    "source": "initial" if event is None else "scenario",
+                    "hops": hops,
+                }
+            )
         # 2. monitoring record and sensor samples
         for p in plants.values():
             if p.next_monitor == t:
@@ -242,6 +264,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         plants={n: p.record for n, p in plants.items()},
         disturbances=scenario.disturbance_times(),
         hops=path_hops(scenario),
+        configurations=configurations,
     )
     rec.wall_s = time.perf_counter() - wall0
     rec.phases = {"run": rec.wall_s}

@@ -111,6 +111,8 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     moves.setdefault(parts[1], {}).setdefault(int(value["t_computed"]), []).append(
                         float(value["value"])
                     )
+            elif key == keys.net_applied():
+                rec.configurations.append({"t": t, **codec.unpack_mapping(body)})
             elif key == keys.net_lost():
                 loss = codec.unpack_mapping(body)
                 if loss["loop"] in rec.loops:

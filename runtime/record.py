@@ -68,6 +68,7 @@ class RunRecord:
     dropped_nodes: dict[str, int] = field(default_factory=dict)
     disturbances: dict[str, list[int]] = field(default_factory=dict)  # plant -> ticks
     hops: dict[str, int] = field(default_factory=dict)  # loop -> sensor-path hops (0: wired)
+    configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, hops
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -169,7 +170,15 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
             "dropped_invalid": dict(sorted(rec.dropped_invalid.items())),
             "lost": rec.lost + sum(p["lost"] + p["moves_lost"] for p in paths.values()),
         },
-        "network": {"paths": paths},
+        "network": {
+            "paths": paths,
+            "configurations": [{**c, "t": to_units(c["t"])} for c in rec.configurations],
+        },
+        "events": [
+            {"t": to_units(c["t"]), "kind": c["event"], "source": c["source"]}
+            for c in rec.configurations
+            if c["source"] != "initial"
+        ],
         "dropped_nodes": dict(sorted(rec.dropped_nodes.items())),
         "wall_s": rec.wall_s,
         "phases_s": rec.phases,

@@ -41,6 +41,7 @@ def save_record(rec: RunRecord, out: Path) -> None:
         "loops": {n: vars(lp) for n, lp in rec.loops.items()},
         "disturbances": rec.disturbances,
         "hops": rec.hops,
+        "configurations": rec.configurations,
         "plants": {
             n: {"state_names": p.state_names, "t": p.t, "x": p.x} for n, p in rec.plants.items()
         },
@@ -58,6 +59,7 @@ def load_saved_record(out: Path) -> RunRecord:
     )
     rec.disturbances = data.get("disturbances", {})
     rec.hops = data.get("hops", {})
+    rec.configurations = data.get("configurations", [])
     for n, lp in data["loops"].items():
         lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
         rec.loops[n] = LoopRecord(**lp)

@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
-from gateway.topology import TopologyConfig
+from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
 from runtime.errors import ConfigError
 from runtime.time import to_ticks
@@ -148,6 +148,15 @@ class NetworkNodeConfig(BaseModel):
     kind: Literal["network"]
 
 
+class ScheduledEvent(BaseModel):
+    """A reconfiguration of the WSN at a set time (node down/up, link degraded, ...)."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0)
+    event: TopologyEvent
+
+
 class GatewayNodeConfig(BaseModel):
     """A WSN gateway: the loops naming it have their sensor (and optionally actuator) paths
     routed over its topology, with per-hop delays, retries and loss (``gateway/``)."""
@@ -156,10 +165,19 @@ class GatewayNodeConfig(BaseModel):
 
     kind: Literal["gateway"]
     topology: TopologyConfig
+    events: list[ScheduledEvent] = Field(
+        default_factory=list, description="reconfigurations applied at their times"
+    )
 
     @model_validator(mode="after")
     def _one_gateway(self) -> GatewayNodeConfig:
         self.gateway_node()
+        topology = Topology(self.topology)  # every event must apply, in time order
+        for i in sorted(range(len(self.events)), key=lambda k: self.events[k].t):
+            try:
+                topology.apply(self.events[i].event)
+            except ValueError as err:
+                raise ValueError(f"events[{i}].event: {err}") from err
         return self
 
     def gateway_node(self) -> str:

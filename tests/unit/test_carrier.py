@@ -50,6 +50,9 @@ def test_each_path_draws_from_its_own_seeded_generator():
 def test_a_path_without_route_loses_everything(tmp_path):
     def cut(d):
         topo = d["nodes"]["network"]["topology"]
+        topo["links"] = [ln for ln in topo["links"] if "s_level" not in (ln["a"], ln["b"])]
+        topo["links"].append({"a": "s_level", "b": "r1", "prr": 0.98})
+        d["nodes"]["network"]["events"] = []
         topo["links"] = [ln for ln in topo["links"] if {ln["a"], ln["b"]} != {"r1", "r2"}]
 
     s = load_scenario(write_variant(tmp_path, WSN, "cut.yaml", cut))
@@ -69,4 +72,36 @@ def test_gateway_loops_are_validated(tmp_path):
         load_scenario(bad)
     bad = write_variant(tmp_path, WSN, "bad2.yaml", lambda d: d["loops"]["level"].update(tau_d=0.1))
     with pytest.raises(ConfigError, match="loops.level.tau_d: a gateway's paths"):
+        load_scenario(bad)
+
+
+def test_a_scheduled_relay_failure_reroutes_with_more_hops_and_longer_delays():
+    s = load_scenario(WSN)
+    summary = summarize(simulate(s))
+    configs = summary["network"]["configurations"]
+    assert [c["event"] for c in configs] == ["initial", "node_down"]
+    assert configs[0]["hops"]["level.sensor"] == 3 and configs[1]["hops"]["level.sensor"] == 4
+    assert configs[1]["hops"]["temperature.sensor"] == 2  # not through r1: unchanged
+    assert summary["events"] == [{"t": 3.0, "kind": "node_down", "source": "scenario"}]
+    tr = summary["loops"]["level"]["trace"]
+    rec = simulate(s).loops["level"]
+    delays = np.array([(d - k) / 1e6 for d, k in zip(rec.t, rec.t_sampled, strict=True)])
+    sampled = np.array(rec.t_sampled) / 1e6
+    before, after = delays[sampled < 3.0].mean(), delays[sampled >= 3.0].mean()
+    assert len(tr["t"]) == len(rec.t)
+    # exact route means 0.17 and 0.23 pu; 30 samples each: within 20 %
+    assert before == pytest.approx(0.17, rel=0.2) and after == pytest.approx(0.23, rel=0.2)
+    assert after > before
+
+
+def test_scheduled_events_are_validated(tmp_path):
+    bad = write_variant(
+        tmp_path,
+        WSN,
+        "bad_event.yaml",
+        lambda d: d["nodes"]["network"]["events"].append(
+            {"t": 1.0, "event": {"type": "node_down", "node": "r9"}}
+        ),
+    )
+    with pytest.raises(ConfigError, match=r"nodes.network.gateway: events\[1\].event: .*r9"):
         load_scenario(bad)
