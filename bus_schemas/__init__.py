@@ -5,9 +5,11 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 
 from bus_schemas.bodies import (
     Done,
+    InjectRequest,
     Loss,
     Move,
     NetApplied,
+    NetworkEvent,
     PlantState,
     Sample,
     Setpoint,
@@ -20,9 +22,11 @@ __all__ = [
     "SCHEMA_VERSION",
     "Envelope",
     "Done",
+    "InjectRequest",
     "Loss",
     "Move",
     "NetApplied",
+    "NetworkEvent",
     "PlantState",
     "Sample",
     "Setpoint",

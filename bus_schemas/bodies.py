@@ -17,6 +17,8 @@ __all__ = [
     "PlantState",
     "Loss",
     "NetApplied",
+    "InjectRequest",
+    "NetworkEvent",
     "Tick",
     "Done",
     "Stop",
@@ -104,6 +106,24 @@ class NetApplied(BaseModel):
     event: str = Field(description="'initial', or the type of the event that caused it")
     source: Literal["initial", "scenario", "injected"]
     hops: dict[str, int] = Field(description="path '<loop>.<direction>' -> hops (-1: down)")
+
+
+class InjectRequest(BaseModel):
+    """An external reconfiguration for the clock to stamp into the run (``ops/inject``)."""
+
+    model_config = _FROZEN
+
+    network: str | None = Field(default=None, description="gateway node; None: the only one")
+    event: dict = Field(description="a topology event: {type: node_down, node: r1}, ...")
+
+
+class NetworkEvent(BaseModel):
+    """A reconfiguration delivered to a gateway (``events/<network>``), stamped by the clock."""
+
+    model_config = _FROZEN
+
+    event: dict
+    source: Literal["injected"] = "injected"
 
 
 class Tick(BaseModel):

@@ -31,6 +31,8 @@ __all__ = [
     "setpoint_all",
     "net_lost",
     "net_applied",
+    "inject",
+    "network_events",
 ]
 
 PREFIX = "wncs"
@@ -112,6 +114,16 @@ def meas(loop: str) -> str:
 def move(loop: str) -> str:
     """Controller output, before the network."""
     return f"loop/{check_name(loop, 'loop')}/u"
+
+
+def inject() -> str:
+    """External inputs for the clock (not a participant's key)."""
+    return "ops/inject"
+
+
+def network_events(network: str) -> str:
+    """Reconfiguration events for one gateway node, as stamped by the clock."""
+    return f"events/{check_name(network, 'network')}"
 
 
 def net_applied() -> str:

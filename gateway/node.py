@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from bus_schemas import Loss, Move, NetApplied, Sample, keys
+from bus_schemas import Loss, Move, NetApplied, NetworkEvent, Sample, keys
 from bus_schemas.envelope import RawEnvelope
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
@@ -27,6 +27,7 @@ class NetworkNode(Node):
         super().__init__(ctx)
         self.carrier = PathCarrier(self.scenario, self.name)
         if self.carrier.topology is not None:
+            self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
             for t, _, event in self.carrier.events:
                 self.at(t, self._announce(event.type, "scenario", event))
@@ -49,6 +50,19 @@ class NetworkNode(Node):
             self.publish(keys.net_applied(), NetApplied(event=kind, source=source, hops=hops))
 
         return apply
+
+    def _on_injected(self, env: RawEnvelope, msg: NetworkEvent) -> None:
+        """An event injected while the run goes on (``wncs inject``), stamped by the clock."""
+        from gateway.topology import parse_event
+
+        try:
+            event = parse_event(msg.event)
+            hops = self.carrier.apply(event)
+        except ValueError as err:  # e.g. a node that is not there any more: refused, run goes on
+            self.log.warning("injected event %s refused: %s", msg.event, err)
+            return
+        self.log.info("network configuration (injected %s): %s", event.type, hops)
+        self.publish(keys.net_applied(), NetApplied(event=event.type, source="injected", hops=hops))
 
     def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:

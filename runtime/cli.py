@@ -74,6 +74,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     report = sub.add_parser("report", help="redraw a run's plots and print its figures")
     report.add_argument("dir")
+
+    inject = sub.add_parser(
+        "inject",
+        help="inject a network reconfiguration into a running run",
+        description="wncs inject DIR EVENT [KEY=VALUE ...]  (or --listen EP --run-id ID EVENT ...)."
+        " Events: node_down node=N | node_up node=N | link_degraded a=N b=M prr=P |"
+        " delay_model_changed delay=JSON [link=JSON] | relay_added node=N links=JSON |"
+        " node_moved node=N links=JSON",
+    )
+    inject.add_argument("words", nargs="+", help="DIR EVENT [KEY=VALUE ...]")
+    inject.add_argument("--network", default=None, help="gateway node (default: the only one)")
+    inject.add_argument("--listen", default=None, help="router endpoint, instead of DIR")
+    inject.add_argument("--run-id", default=None, help="run id, with --listen")
     return parser
 
 
@@ -183,13 +196,46 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_inject(args: argparse.Namespace) -> int:
+    from runtime.inject import build_request, send
+    from runtime.launcher import RUN_FILE
+
+    words = list(args.words)
+    run_dir = None
+    if args.listen is not None:
+        if not args.run_id:
+            raise ConfigError("--listen needs --run-id")
+        endpoint, run_id = args.listen, args.run_id
+    else:
+        if len(words) < 2:
+            raise ConfigError("usage: wncs inject DIR EVENT [KEY=VALUE ...]")
+        run_dir = Path(words.pop(0))
+        try:
+            info = json.loads((run_dir / RUN_FILE).read_text())
+        except (OSError, ValueError) as err:
+            raise ConfigError(f"{run_dir / RUN_FILE}: not a running run ({err})") from err
+        endpoint, run_id = info.get("endpoint"), info["run_id"]
+        if not endpoint:
+            raise ConfigError(f"{run_dir / RUN_FILE}: the run has no bus (direct engine)")
+    request = build_request(words[0], words[1:], run_dir=run_dir, network=args.network)
+    send(endpoint, run_id, request)
+    print(f"injected {request.event} into run {run_id}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.INFO if args.command == "node" else logging.WARNING
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
-        return {"run": _cmd_run, "node": _cmd_node, "report": _cmd_report}[args.command](args)
+        commands = {
+            "run": _cmd_run,
+            "node": _cmd_node,
+            "report": _cmd_report,
+            "inject": _cmd_inject,
+        }
+        return commands[args.command](args)
     except ConfigError as err:
         print(f"wncs {args.command}: {err}", file=sys.stderr)
         return 2

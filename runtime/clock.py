@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping
 
 import zenoh
 
-from bus_schemas import Done, Stop, Tick, codec, keys
+from bus_schemas import Done, InjectRequest, NetworkEvent, Stop, Tick, codec, keys
 from runtime.errors import NodeFault, ProtocolError, SchemaError
 from runtime.scenario import Scenario
 from runtime.time import TICKS_PER_UNIT, to_ticks, to_units
@@ -134,6 +134,7 @@ class ClockRunner:
         self.dropped_invalid: dict[str, dict[str, int]] = {}
         self.error: str | None = None
         self.dropped_nodes: list[dict[str, object]] = []
+        self._injections: list[tuple[str, dict]] = []
 
     # -- bus plumbing ----------------------------------------------------------------------------
     def _full(self, rel: str) -> str:
@@ -164,6 +165,55 @@ class ClockRunner:
     def _on_done(self, sample: zenoh.Sample) -> None:
         self._queue.put(("done", str(sample.key_expr), sample.payload.to_bytes()))
 
+    def _on_inject(self, sample: zenoh.Sample) -> None:
+        self._queue.put(("inject", str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _take_injection(self, payload: bytes) -> None:
+        """Validate an external request and keep it for the next round (bad ones are logged)."""
+        from gateway.topology import parse_event
+
+        try:
+            env = codec.decode_envelope(payload)
+            request = codec.decode_body(env, InjectRequest)
+            gateways = sorted(n for n, c in self.scenario.nodes.items() if c.kind == "gateway")
+            network = request.network or (gateways[0] if len(gateways) == 1 else None)
+            if network not in gateways:
+                raise SchemaError(f"network {request.network!r} is not one gateway of {gateways}")
+            parse_event(request.event)
+        except (SchemaError, ValueError) as err:
+            log.warning("clock: dropping injected event: %s", err)
+            return
+        log.info("clock: injected %s for %s, in the next round", request.event, network)
+        self._injections.append((network, request.event))
+
+    def _stamp_injections(self, tick: Tick) -> Tick:
+        """Publish pending external events as the clock's messages of the previous round and
+        announce them in this round's expected counts (DESIGN section 3, external inputs)."""
+        if not self._injections or tick.round == 0:
+            return tick
+        expected = dict(tick.expected)
+        for network, event in self._injections:
+            rel = keys.network_events(network)
+            payload = codec.encode(
+                run=self.run_id,
+                src="clock",
+                seq=self._seq,
+                round=tick.round - 1,
+                t=tick.t,
+                body=NetworkEvent(event=event),
+            )
+            self._seq += 1
+            self.session.put(
+                self._full(rel),
+                payload,
+                encoding=zenoh.Encoding(codec.ENCODING),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                express=True,
+            )
+            expected[rel] = expected.get(rel, 0) + 1
+        self._injections.clear()
+        return Tick(round=tick.round, t=tick.t, expected=dict(sorted(expected.items())))
+
     def _handle_alive(self, name: str, kind: zenoh.SampleKind) -> None:
         if kind == zenoh.SampleKind.PUT:
             self._alive.add(name)
@@ -191,6 +241,7 @@ class ClockRunner:
         subs = [
             live.declare_subscriber(self._full(keys.alive_all()), self._on_alive, history=True),
             self.session.declare_subscriber(self._full(keys.done_all()), self._on_done),
+            self.session.declare_subscriber(self._full(keys.inject()), self._on_inject),
         ]
         try:
             try:
@@ -243,6 +294,8 @@ class ClockRunner:
                 )
             if item[0] == "alive":
                 self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
+            elif item[0] == "inject":
+                self._take_injection(item[2])  # type: ignore[arg-type]
         if self.pacer is not None:
             self.pacer.start = time.monotonic()
 
@@ -250,7 +303,7 @@ class ClockRunner:
         timeout = self.scenario.clock.round_timeout_s
         planner = self.planner
         while True:
-            tick = planner.tick()
+            tick = self._stamp_injections(planner.tick())
             self._publish(keys.tick(), tick)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
@@ -265,6 +318,9 @@ class ClockRunner:
                 kind, key, payload = item
                 if kind == "alive":
                     self._handle_alive(key, payload)  # type: ignore[arg-type]
+                    continue
+                if kind == "inject":
+                    self._take_injection(payload)  # type: ignore[arg-type]
                     continue
                 try:
                     env = codec.decode_envelope(payload)  # type: ignore[arg-type]
@@ -293,6 +349,8 @@ class ClockRunner:
             item = self._next(wait)
             if item is not None and item[0] == "alive":
                 self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
+            elif item is not None and item[0] == "inject":
+                self._take_injection(item[2])  # type: ignore[arg-type]
 
     def _wait_for_exit(self, timeout: float) -> None:
         """Give the participants time to see the Stop and leave (the historian flushes)."""

@@ -90,7 +90,8 @@ class Node:
         self.name = ctx.name
         self.run_id = ctx.run_id
         self.scenario = ctx.scenario
-        self.participants = frozenset(ctx.scenario.participants())
+        # sources whose data messages count: the participants, and the clock (external inputs)
+        self.participants = frozenset([*ctx.scenario.participants(), "clock"])
         self.round = -1
         self.now = 0
         self.current_key = ""
@@ -270,8 +271,8 @@ class Node:
             rel = keys.relative(self.run_id, key)
         except ValueError:
             return
-        if rel.startswith("clock/"):
-            return  # the clock's messages are not data (a '**' subscription sees them)
+        if rel.startswith("clock/") or rel == keys.inject():
+            return  # the clock's control and the requests it stamps are not data ('**' sees them)
         try:
             env = codec.decode_envelope(payload)
             if env.run != self.run_id:

@@ -297,3 +297,53 @@ def test_a_droppable_node_is_dropped_and_the_run_carries_on(tmp_path):
     answered = [t for t, u in zip(temp["t"], temp["u"], strict=True) if u is not None]
     assert temp["t"][-1] == pytest.approx(end) and temp["u"][-1] is None
     assert 0.9 <= answered[-1] < end  # killed once the clock reached 1.0: maybe before its move
+
+
+def test_wncs_inject_reroutes_a_running_run(tmp_path):
+    """A relay failure injected into a running processes run: reroute, more hops, longer delays,
+    the event in summary.json; bad requests are refused before anything is sent."""
+    scenario = write_variant(
+        tmp_path, WSN, "wsn.yaml", lambda d: d["nodes"]["network"].update(events=[])
+    )
+    out = tmp_path / "out"
+    proc, info = start_run(scenario, out, "--realtime", "1.0")
+    session = open_client(info["endpoint"])
+    try:
+        wait_for_virtual_time(session, info, proc, 2_000_000)
+        for words, fragment in (
+            (["node_down", "node=r9"], "unknown node 'r9'"),
+            (["link_degraded", "a=r1", "b=r2", "prr=2"], "prr"),
+            (["teleport", "node=r1"], "teleport"),
+        ):
+            bad = subprocess.run(
+                [*WNCS, "inject", str(out), *words], capture_output=True, text=True, timeout=60
+            )
+            assert bad.returncode == 2 and fragment in bad.stderr, bad.stderr
+        # a malformed event straight on the gateway's key is dropped, the run goes on
+        session.put(keys.full(info["run_id"], keys.network_events("network")), b"\x00garbage")
+        ok = subprocess.run(
+            [*WNCS, "inject", str(out), "node_down", "node=r1"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert ok.returncode == 0, ok.stderr
+        out_text, err = proc.communicate(timeout=120)
+    finally:
+        session.close()
+    assert proc.returncode == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    [event] = summary["events"]
+    assert event["kind"] == "node_down" and event["source"] == "injected"
+    assert 2.0 <= event["t"] < 6.0
+    configs = summary["network"]["configurations"]
+    assert configs[0]["hops"]["level.sensor"] == 3 and configs[-1]["hops"]["level.sensor"] == 4
+    assert summary["messages"]["dropped_invalid"].get("events/network", 0) >= 1
+    from runtime.history import load_record
+
+    level = load_record(out / "history.sqlite", load_scenario(scenario), engine="processes")
+    level = level.loops["level"]
+    t_event = event["t"] * 1e6
+    before = [d - k for d, k in zip(level.t, level.t_sampled, strict=True) if k < t_event]
+    after = [d - k for d, k in zip(level.t, level.t_sampled, strict=True) if k > t_event]
+    assert np.mean(after) > np.mean(before)  # 4 hops (0.23 pu) against 3 (0.17 pu)

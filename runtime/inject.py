@@ -1,0 +1,127 @@
+"""``wncs inject``: put a network reconfiguration into a running run.
+
+The request goes to the clock on ``ops/inject``; the clock stamps it into its next round as
+``events/<network>``, counted like any other message, so the history shows exactly when it took
+effect and a replay of the history reproduces the run (DESIGN section 3, external inputs).
+A request is checked here first: an unknown event type, a malformed field, or a node the run's
+network does not have is refused with a message naming it (exit code 2), and nothing is sent.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from bus_schemas import InjectRequest, codec, keys
+from runtime.errors import ConfigError
+
+__all__ = ["parse_fields", "build_request", "send"]
+
+
+def parse_fields(words: list[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` words into a mapping; a VALUE that parses as JSON is taken as JSON."""
+    fields: dict[str, Any] = {}
+    for word in words:
+        key, sep, value = word.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"event field {word!r}: expected KEY=VALUE")
+        try:
+            fields[key] = json.loads(value)
+        except ValueError:
+            fields[key] = value
+    return fields
+
+
+def _known_nodes(run_dir: Path, network: str | None) -> tuple[str, set[str]]:
+    from gateway.topology import Topology
+    from runtime.launcher import SCENARIO_FILE
+    from runtime.scenario import load_scenario
+
+    scenario = load_scenario(run_dir / SCENARIO_FILE)
+    gateways = sorted(n for n, c in scenario.nodes.items() if c.kind == "gateway")
+    if network is None:
+        if len(gateways) != 1:
+            raise ConfigError(f"--network: the run has gateways {gateways}; name one")
+        network = gateways[0]
+    if network not in gateways:
+        raise ConfigError(f"--network: {network!r} is not a gateway of the run {gateways}")
+    cfg = scenario.nodes[network]
+    topology = Topology(cfg.topology)
+    nodes = set(topology.nodes)
+    for scheduled in cfg.events:  # relays the scenario adds on its own
+        node = getattr(scheduled.event, "node", None)
+        if node:
+            nodes.add(node)
+    return network, nodes
+
+
+def build_request(
+    event_type: str, words: list[str], *, run_dir: Path | None, network: str | None
+) -> InjectRequest:
+    """Validate an event given on the command line; raise ``ConfigError`` naming the problem."""
+    from gateway.topology import parse_event
+
+    data = {"type": event_type, **parse_fields(words)}
+    try:
+        event = parse_event(data)
+    except ValidationError as err:
+        e = err.errors()[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(f"event {event_type!r}: {loc}: {e['msg']}") from err
+    if run_dir is not None:
+        network, nodes = _known_nodes(run_dir, network)
+        named = [
+            ("node", getattr(event, "node", None)),
+            ("a", getattr(event, "a", None)),
+            ("b", getattr(event, "b", None)),
+        ]
+        new = event.node if event.type == "relay_added" else None
+        for link in getattr(event, "links", []) or []:
+            named += [("links.a", link.a), ("links.b", link.b)]
+        for field, name in named:
+            if name is not None and name != new and name not in nodes:
+                raise ConfigError(
+                    f"event {event_type!r}: {field}: unknown node {name!r} "
+                    f"(network {network!r} has {sorted(nodes)})"
+                )
+    return InjectRequest(network=network, event=event.model_dump(mode="json"))
+
+
+def send(endpoint: str, run_id: str, request: InjectRequest, *, timeout: float = 10.0) -> None:
+    """Publish the request to the run's clock once the clock is listening."""
+    import zenoh
+
+    from runtime.bus import open_client
+
+    session = open_client(endpoint)
+    try:
+        publisher = session.declare_publisher(
+            keys.full(run_id, keys.inject()),
+            encoding=zenoh.Encoding(codec.ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
+        matched = threading.Event()
+        listener = publisher.declare_matching_listener(
+            lambda status: matched.set() if status.matching else None
+        )
+        if not publisher.matching_status.matching and not matched.wait(timeout):
+            raise ConfigError(f"no clock of run {run_id!r} is listening at {endpoint}")
+        publisher.put(
+            codec.encode(
+                run=run_id,
+                src="inject",
+                seq=int(time.time_ns() % 2**31),
+                round=0,
+                t=0,
+                body=request,
+            )
+        )
+        listener.undeclare()
+        publisher.undeclare()
+    finally:
+        session.close()
