@@ -17,6 +17,9 @@ __all__ = [
     "PlantState",
     "Loss",
     "NetApplied",
+    "PathConfig",
+    "NodeStats",
+    "NetStats",
     "InjectRequest",
     "NetworkEvent",
     "Tick",
@@ -98,6 +101,18 @@ class Loss(BaseModel):
     t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
 
 
+class PathConfig(BaseModel):
+    """One routed path of a network configuration, with the paper's three delay estimates."""
+
+    model_config = _FROZEN
+
+    hops: int = Field(description="-1: no route, the path is down")
+    route: list[str]
+    estimates: dict[str, float | None] = Field(
+        description="timestamps / ping / hops -> estimated path delay, time units"
+    )
+
+
 class NetApplied(BaseModel):
     """The network's configuration now in force (``net/applied``): at start and after each event."""
 
@@ -105,7 +120,25 @@ class NetApplied(BaseModel):
 
     event: str = Field(description="'initial', or the type of the event that caused it")
     source: Literal["initial", "scenario", "injected"]
-    hops: dict[str, int] = Field(description="path '<loop>.<direction>' -> hops (-1: down)")
+    paths: dict[str, PathConfig] = Field(description="path '<loop>.<direction>' -> its route")
+
+
+class NodeStats(BaseModel):
+    """Energy of one WSN node."""
+
+    model_config = _FROZEN
+
+    energy_mAh: float
+    battery_pct: float
+    lifetime_h: float | None = Field(description="projected at the current rates; None: mains")
+
+
+class NetStats(BaseModel):
+    """Per-node energy of a gateway's WSN (``net/stats``), periodically and at the end."""
+
+    model_config = _FROZEN
+
+    nodes: dict[str, NodeStats]
 
 
 class InjectRequest(BaseModel):

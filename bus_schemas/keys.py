@@ -31,6 +31,7 @@ __all__ = [
     "setpoint_all",
     "net_lost",
     "net_applied",
+    "net_stats",
     "inject",
     "network_events",
 ]
@@ -129,6 +130,11 @@ def network_events(network: str) -> str:
 def net_applied() -> str:
     """The network configuration in force, after each change."""
     return "net/applied"
+
+
+def net_stats() -> str:
+    """Energy of the WSN's nodes (per gateway node; the source names it)."""
+    return "net/stats"
 
 
 def net_lost() -> str:

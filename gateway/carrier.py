@@ -16,11 +16,14 @@ paths, and the bus engines and the direct engine deliver identical packets at id
 
 from __future__ import annotations
 
+import math
 import zlib
 from typing import Any
 
 import numpy as np
 
+from gateway.energy import EnergyMeter, projected_lifetime
+from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
 from gateway.paths import Route, deliver
 from gateway.topology import Topology
 from runtime.time import to_ticks
@@ -75,6 +78,20 @@ class PathCarrier:
                 topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
                 self.routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
         self.topology = topology
+        self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
+        self.stamps = {path: TimestampEstimator() for path in self.routes}
+        self._ping_probes = cfg.ping_probes if topology is not None else 0
+        self._ping_rng = {
+            path: np.random.default_rng(
+                [
+                    scenario.seed,
+                    zlib.crc32(node.encode()),
+                    zlib.crc32(path[0].encode()),
+                    2 if path[1] == SENSOR else 3,
+                ]
+            )
+            for path in self.routes
+        }
         self.events = (
             sorted(
                 ((to_ticks(e.t), i, e.event) for i, e in enumerate(cfg.events)),
@@ -84,20 +101,63 @@ class PathCarrier:
             else []
         )
 
-    def apply(self, event: Any) -> dict[str, int]:
-        """Apply a reconfiguration event; reroute every path; return path -> hops after it."""
-        if self.topology is None:
+    def apply(self, event: Any, t: int) -> dict[str, dict[str, Any]]:
+        """Apply a reconfiguration event at ``t``; reroute every path; return
+        :meth:`configuration` after it. Idle listening is charged up to ``t`` first."""
+        if self.topology is None or self.meter is None:
             raise ValueError(f"{self.node}: a wired network has no topology to reconfigure")
+        self.meter.advance(t)
         routes = self.topology.apply(event).routes
         for loop, direction in list(self.routes):
             self.routes[loop, direction] = routes[f"{loop}.{direction}"]
-        return self.configuration()
+        return self.configuration(t)
 
-    def configuration(self) -> dict[str, int]:
-        """Path (``<loop>.<direction>``) -> hops now (-1: down) for the routed paths."""
+    def configuration(self, t: int) -> dict[str, dict[str, Any]]:
+        """Path (``<loop>.<direction>``) -> hops (-1: down), route and the paper's three delay
+        estimates (seed 000, III.E step 1) at time ``t``: time stamps of the samples delivered
+        since the previous configuration, i.e. measured on the route being replaced (``None`` at
+        start; the estimator then restarts), ping probes drawn at ``t`` from the path's own
+        probe generator (apart from the data's draws), and hops x the model's mean per-hop
+        delay."""
+        out = {}
+        for (loop, direction), route in sorted(self.routes.items()):
+            path = (loop, direction)
+            stamps = self.stamps[path].estimate()
+            estimates: dict[str, float | None] = {
+                "timestamps": _finite(stamps.tau_d),
+                "ping": None,
+                "hops": None,
+            }
+            if route is not None:
+                ping = ping_estimate(route, t, self._ping_rng[path], probes=self._ping_probes)
+                estimates["ping"] = _finite(ping.tau_d)
+                estimates["hops"] = _finite(hops_estimate(route).tau_d)
+            self.stamps[path].reset()
+            out[f"{loop}.{direction}"] = {
+                "hops": -1 if route is None else route.n_hops,
+                "route": [] if route is None else list(route.nodes),
+                "estimates": estimates,
+            }
+        return out
+
+    def energy(self, t: int) -> dict[str, dict[str, float | None]]:
+        """Per topology node at ``t``: charge spent (mAh), battery (%), projected lifetime (h)
+        at the current routes and the loops' sampling periods (``None``: mains powered)."""
+        if self.meter is None or self.topology is None:
+            return {}
+        self.meter.advance(t)
+        routes = {f"{lp}.{d}": r for (lp, d), r in self.routes.items() if d == SENSOR}
+        periods = {f"{lp}.{d}": self.loops[lp].tau_s for (lp, d) in self.routes if d == SENSOR}
+        projected = projected_lifetime(
+            self.topology, routes, periods, self.meter.config, self.meter
+        )
         return {
-            f"{loop}.{direction}": (-1 if route is None else route.n_hops)
-            for (loop, direction), route in sorted(self.routes.items())
+            name: {
+                "energy_mAh": self.meter.charge(name).total_mAh,
+                "battery_pct": self.meter.battery_pct(name),
+                "lifetime_h": _finite(projected[name].lifetime_s / 3600.0),
+            }
+            for name in sorted(self.topology.nodes)
         }
 
     def hops(self, loop: str, direction: str = SENSOR) -> int:
@@ -115,7 +175,12 @@ class PathCarrier:
         route = self.routes[loop, direction]
         if route is None:
             return None  # no route: the path is down and its packets are lost
-        return deliver(route, t_ready, self._rng[loop, direction]).t_deliver
+        delivery = deliver(route, t_ready, self._rng[loop, direction])
+        if self.meter is not None:
+            self.meter.record(route, delivery)
+        if delivery.t_deliver is not None:
+            self.stamps[loop, direction].add(t_ready, delivery.t_deliver)
+        return delivery.t_deliver
 
 
 def path_hops(scenario: Any) -> dict[str, int]:
@@ -126,3 +191,8 @@ def path_hops(scenario: Any) -> dict[str, int]:
             carrier = PathCarrier(scenario, name)
             out.update({loop: carrier.hops(loop) for loop in carrier.loops})
     return out
+
+
+def _finite(value: float) -> float | None:
+    """JSON-safe: ``None`` for nan or inf."""
+    return float(value) if math.isfinite(value) else None

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from bus_schemas import Loss, Move, NetApplied, NetworkEvent, Sample, keys
+from bus_schemas import Loss, Move, NetApplied, NetStats, NetworkEvent, Sample, keys
 from bus_schemas.envelope import RawEnvelope
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
+from runtime.time import to_ticks
 
 __all__ = ["NetworkNode"]
 
@@ -31,6 +32,13 @@ class NetworkNode(Node):
             self.at(0, self._announce("initial", "initial", None))
             for t, _, event in self.carrier.events:
                 self.at(t, self._announce(event.type, "scenario", event))
+            cfg = self.scenario.nodes[self.name]
+            end = to_ticks(self.scenario.end_time)
+            if cfg.stats_period is not None:
+                period = to_ticks(cfg.stats_period)
+                for t in range(period, end, period):
+                    self.at(t, self._stats)
+            self.at(end, self._stats)
         for name, loop in self.carrier.loops.items():
             self.subscribe(
                 keys.sensor(loop.plant, loop.sensor),
@@ -45,11 +53,21 @@ class NetworkNode(Node):
 
     def _announce(self, kind: str, source: str, event: Any) -> Any:
         def apply() -> None:
-            hops = self.carrier.configuration() if event is None else self.carrier.apply(event)
-            self.log.info("network configuration (%s %s): %s", source, kind, hops)
-            self.publish(keys.net_applied(), NetApplied(event=kind, source=source, hops=hops))
+            if event is None:
+                paths = self.carrier.configuration(self.now)
+            else:
+                paths = self.carrier.apply(event, self.now)
+            self._publish_configuration(kind, source, paths)
 
         return apply
+
+    def _publish_configuration(self, kind: str, source: str, paths: dict) -> None:
+        hops = {p: c["hops"] for p, c in paths.items()}
+        self.log.info("network configuration (%s %s): hops %s", source, kind, hops)
+        self.publish(keys.net_applied(), NetApplied(event=kind, source=source, paths=paths))
+
+    def _stats(self) -> None:
+        self.publish(keys.net_stats(), NetStats(nodes=self.carrier.energy(self.now)))
 
     def _on_injected(self, env: RawEnvelope, msg: NetworkEvent) -> None:
         """An event injected while the run goes on (``wncs inject``), stamped by the clock."""
@@ -57,12 +75,11 @@ class NetworkNode(Node):
 
         try:
             event = parse_event(msg.event)
-            hops = self.carrier.apply(event)
+            paths = self.carrier.apply(event, self.now)
         except ValueError as err:  # e.g. a node that is not there any more: refused, run goes on
             self.log.warning("injected event %s refused: %s", msg.event, err)
             return
-        self.log.info("network configuration (injected %s): %s", event.type, hops)
-        self.publish(keys.net_applied(), NetApplied(event=event.type, source="injected", hops=hops))
+        self._publish_configuration(event.type, "injected", paths)
 
     def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:

@@ -114,11 +114,14 @@ def simulate(scenario: Scenario) -> RunRecord:
     }
     order = itertools.count()  # FIFO among packets due at the same instant, as the node's timers
     configurations: list[dict[str, Any]] = []
+    net_nodes: dict[str, Any] = {}
     net_events = []  # (t, network node, index, event or None for the initial announcement)
     for cname, carrier in carriers.items():
         if carrier.topology is not None:
             net_events.append((0, cname, -1, None))
             net_events += [(t_ev, cname, i, ev) for t_ev, i, ev in carrier.events]
+            # the gateway's energy at the end, before the packets of the last instant (its timer)
+            net_events.append((end, cname, 10**9, "stats"))
     net_events.sort(key=lambda e: (e[0], e[1], e[2]))
     setpoints = {name: lp.setpoint for name, lp in scenario.loops.items()}
     loops: dict[str, _Loop] = {}
@@ -191,13 +194,16 @@ def simulate(scenario: Scenario) -> RunRecord:
         while net_events and net_events[0][0] == t:
             _, cname, _, event = net_events.pop(0)
             carrier = carriers[cname]
-            hops = carrier.configuration() if event is None else carrier.apply(event)
+            if event == "stats":
+                net_nodes.update(carrier.energy(t))
+                continue
+            paths = carrier.configuration(t) if event is None else carrier.apply(event, t)
             configurations.append(
                 {
                     "t": t,
                     "event": "initial" if event is None else event.type,
                     "source": "initial" if event is None else "scenario",
-                    "hops": hops,
+                    "paths": paths,
                 }
             )
         # 2. monitoring record and sensor samples
@@ -265,6 +271,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         disturbances=scenario.disturbance_times(),
         hops=path_hops(scenario),
         configurations=configurations,
+        net_nodes=net_nodes,
     )
     rec.wall_s = time.perf_counter() - wall0
     rec.phases = {"run": rec.wall_s}

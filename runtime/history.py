@@ -113,6 +113,8 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     )
             elif key == keys.net_applied():
                 rec.configurations.append({"t": t, **codec.unpack_mapping(body)})
+            elif key == keys.net_stats():
+                rec.net_nodes.update(codec.unpack_mapping(body)["nodes"])  # the last one wins
             elif key == keys.net_lost():
                 loss = codec.unpack_mapping(body)
                 if loss["loop"] in rec.loops:

@@ -420,6 +420,9 @@ def _run_threads(
     while clock_thread.is_alive():
         if t_started is None and set(names) <= prog.alive:
             t_started = time.perf_counter()
+        if t_started is None and errors:  # a node failed while starting: do not wait for the clock
+            name = sorted(errors)[0]
+            return 1, f"node {name!r} failed while starting: {errors[name]}", None
         prog.show()
         clock_thread.join(0.05)
     for th in threads[1:]:

@@ -68,7 +68,8 @@ class RunRecord:
     dropped_nodes: dict[str, int] = field(default_factory=dict)
     disturbances: dict[str, list[int]] = field(default_factory=dict)  # plant -> ticks
     hops: dict[str, int] = field(default_factory=dict)  # loop -> sensor-path hops (0: wired)
-    configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, hops
+    configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, paths
+    net_nodes: dict[str, Any] = field(default_factory=dict)  # WSN node -> energy at the end
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -172,6 +173,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
         },
         "network": {
             "paths": paths,
+            "nodes": dict(sorted(rec.net_nodes.items())),
             "configurations": [{**c, "t": to_units(c["t"])} for c in rec.configurations],
         },
         "events": [

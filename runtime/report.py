@@ -42,6 +42,7 @@ def save_record(rec: RunRecord, out: Path) -> None:
         "disturbances": rec.disturbances,
         "hops": rec.hops,
         "configurations": rec.configurations,
+        "net_nodes": rec.net_nodes,
         "plants": {
             n: {"state_names": p.state_names, "t": p.t, "x": p.x} for n, p in rec.plants.items()
         },
@@ -60,6 +61,7 @@ def load_saved_record(out: Path) -> RunRecord:
     rec.disturbances = data.get("disturbances", {})
     rec.hops = data.get("hops", {})
     rec.configurations = data.get("configurations", [])
+    rec.net_nodes = data.get("net_nodes", {})
     for n, lp in data["loops"].items():
         lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
         rec.loops[n] = LoopRecord(**lp)

@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
+from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
 from runtime.errors import ConfigError
@@ -167,6 +168,14 @@ class GatewayNodeConfig(BaseModel):
     topology: TopologyConfig
     events: list[ScheduledEvent] = Field(
         default_factory=list, description="reconfigurations applied at their times"
+    )
+    energy: EnergyConfig = Field(
+        default_factory=EnergyConfig,
+        description="radio charges and batteries; seconds_per_unit maps scenario time to s",
+    )
+    ping_probes: int = Field(default=10, ge=1, description="probes per ping estimate")
+    stats_period: float | None = Field(
+        default=None, gt=0, description="period of net/stats (always sent at the end)"
     )
 
     @model_validator(mode="after")

@@ -337,7 +337,10 @@ def test_wncs_inject_reroutes_a_running_run(tmp_path):
     assert event["kind"] == "node_down" and event["source"] == "injected"
     assert 2.0 <= event["t"] < 6.0
     configs = summary["network"]["configurations"]
-    assert configs[0]["hops"]["level.sensor"] == 3 and configs[-1]["hops"]["level.sensor"] == 4
+    assert (
+        configs[0]["paths"]["level.sensor"]["hops"] == 3
+        and configs[-1]["paths"]["level.sensor"]["hops"] == 4
+    )
     assert summary["messages"]["dropped_invalid"].get("events/network", 0) >= 1
     from runtime.history import load_record
 

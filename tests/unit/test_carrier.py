@@ -80,8 +80,11 @@ def test_a_scheduled_relay_failure_reroutes_with_more_hops_and_longer_delays():
     summary = summarize(simulate(s))
     configs = summary["network"]["configurations"]
     assert [c["event"] for c in configs] == ["initial", "node_down"]
-    assert configs[0]["hops"]["level.sensor"] == 3 and configs[1]["hops"]["level.sensor"] == 4
-    assert configs[1]["hops"]["temperature.sensor"] == 2  # not through r1: unchanged
+    assert (
+        configs[0]["paths"]["level.sensor"]["hops"] == 3
+        and configs[1]["paths"]["level.sensor"]["hops"] == 4
+    )
+    assert configs[1]["paths"]["temperature.sensor"]["hops"] == 2  # not through r1: unchanged
     assert summary["events"] == [{"t": 3.0, "kind": "node_down", "source": "scenario"}]
     tr = summary["loops"]["level"]["trace"]
     rec = simulate(s).loops["level"]
@@ -105,3 +108,27 @@ def test_scheduled_events_are_validated(tmp_path):
     )
     with pytest.raises(ConfigError, match=r"nodes.network.gateway: events\[1\].event: .*r9"):
         load_scenario(bad)
+
+
+def test_configurations_carry_the_three_delay_estimates_and_energy():
+    s = load_scenario(WSN)
+    summary = summarize(simulate(s))
+    first, second = summary["network"]["configurations"]
+    level0 = first["paths"]["level.sensor"]
+    assert level0["route"] == ["s_level", "r1", "r2", "gw"]
+    est = level0["estimates"]
+    assert est["timestamps"] is None  # nothing delivered yet at t = 0
+    assert est["hops"] == pytest.approx(0.17, rel=1e-4)  # hops x mean per-hop delay
+    assert est["ping"] == pytest.approx(0.17, rel=0.35)  # 10 probes of a random delay
+    # after the reroute: time stamps measured on the old route, the others on the new one
+    level1 = second["paths"]["level.sensor"]
+    assert level1["estimates"]["timestamps"] == pytest.approx(0.17, rel=0.2)
+    assert level1["estimates"]["hops"] == pytest.approx(0.23, rel=1e-4)
+    nodes = summary["network"]["nodes"]
+    assert set(nodes) == {"s_level", "s_temp", "r1", "r2", "r4", "r5", "gw"}
+    assert nodes["gw"]["lifetime_h"] is None  # mains powered
+    # r2 forwards both sensors: it spends the most
+    battery = {n: v["energy_mAh"] for n, v in nodes.items() if n != "gw"}
+    assert max(battery, key=battery.get) == "r2"
+    for name in battery:
+        assert 0.0 < nodes[name]["energy_mAh"] and nodes[name]["battery_pct"] < 100.0
