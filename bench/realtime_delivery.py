@@ -78,10 +78,11 @@ def main() -> None:
     late = np.array(
         [(now - (t0 + t / 1e6 * spu)) * 1e3 for now, t in arrivals if t / 1e6 * spu > 1.0]
     )
+    jitter = late - np.median(late)  # the reference (first tick seen here) has its own offset
     print(
-        f"{len(late)} delayed deliveries at {spu:g} s/pu ({args.engine}): lateness median "
-        f"{np.median(late):.3f} ms, p99 {np.percentile(late, 99):.3f} ms, max {late.max():.3f} ms "
-        "(aim: p99 below 2 ms)"
+        f"{len(late)} delayed deliveries at {spu:g} s/pu ({args.engine}): lateness against the "
+        f"first tick median {np.median(late):.3f} ms; around that median: p99 "
+        f"{np.percentile(jitter, 99):.3f} ms, max {jitter.max():.3f} ms (aim: p99 below 2 ms)"
     )
 
 
