@@ -20,6 +20,8 @@ __all__ = [
     "PathConfig",
     "NodeStats",
     "NetStats",
+    "PathStats",
+    "Proposal",
     "InjectRequest",
     "NetworkEvent",
     "Tick",
@@ -133,12 +135,38 @@ class NodeStats(BaseModel):
     lifetime_h: float | None = Field(description="projected at the current rates; None: mains")
 
 
-class NetStats(BaseModel):
-    """Per-node energy of a gateway's WSN (``net/stats``), periodically and at the end."""
+class PathStats(BaseModel):
+    """What one routed path delivered so far."""
 
     model_config = _FROZEN
 
+    hops: int
+    delay_mean: float | None
+    delay_p95: float | None
+    delay_max: float | None
+    sent: int = Field(ge=0)
+    lost: int = Field(ge=0)
+
+
+class NetStats(BaseModel):
+    """A gateway's WSN (``net/stats``), periodically and at the end: per path what it delivered,
+    per node its energy."""
+
+    model_config = _FROZEN
+
+    paths: dict[str, PathStats]
     nodes: dict[str, NodeStats]
+
+
+class Proposal(BaseModel):
+    """A network configuration proposed to the coordination agent (``net/proposal``)."""
+
+    model_config = _FROZEN
+
+    id: int = Field(ge=0, strict=True, description="increasing per gateway")
+    event: str
+    source: Literal["initial", "scenario", "injected"]
+    paths: dict[str, PathConfig]
 
 
 class InjectRequest(BaseModel):

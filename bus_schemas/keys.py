@@ -32,6 +32,7 @@ __all__ = [
     "net_lost",
     "net_applied",
     "net_stats",
+    "net_proposal",
     "inject",
     "network_events",
 ]
@@ -130,6 +131,11 @@ def network_events(network: str) -> str:
 def net_applied() -> str:
     """The network configuration in force, after each change."""
     return "net/applied"
+
+
+def net_proposal() -> str:
+    """A gateway's proposed configuration, for the coordination agent."""
+    return "net/proposal"
 
 
 def net_stats() -> str:

@@ -80,6 +80,10 @@ class PathCarrier:
         self.topology = topology
         self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
         self.stamps = {path: TimestampEstimator() for path in self.routes}
+        # what each routed path carried: (t_ready, t_deliver or None), for net/stats
+        self.carried: dict[tuple[str, str], list[tuple[int, int | None]]] = {
+            path: [] for path in self.routes
+        }
         self._ping_probes = cfg.ping_probes if topology is not None else 0
         self._ping_rng = {
             path: np.random.default_rng(
@@ -140,6 +144,23 @@ class PathCarrier:
             }
         return out
 
+    def path_stats(self, t: int) -> dict[str, dict[str, Any]]:
+        """Per routed path: hops now, and of the packets it was given that are due by ``t``:
+        delivered delays (mean, p95, max; time units), sent, lost."""
+        out = {}
+        for (loop, direction), route in sorted(self.routes.items()):
+            done = [(r, d) for r, d in self.carried[loop, direction] if d is None or d <= t]
+            delays = np.array([(d - r) / 1e6 for r, d in done if d is not None])
+            out[f"{loop}.{direction}"] = {
+                "hops": -1 if route is None else route.n_hops,
+                "delay_mean": float(delays.mean()) if len(delays) else None,
+                "delay_p95": float(np.percentile(delays, 95)) if len(delays) else None,
+                "delay_max": float(delays.max()) if len(delays) else None,
+                "sent": len(done),
+                "lost": sum(1 for _, d in done if d is None),
+            }
+        return out
+
     def energy(self, t: int) -> dict[str, dict[str, float | None]]:
         """Per topology node at ``t``: charge spent (mAh), battery (%), projected lifetime (h)
         at the current routes and the loops' sampling periods (``None``: mains powered)."""
@@ -174,8 +195,10 @@ class PathCarrier:
             return t_ready + const
         route = self.routes[loop, direction]
         if route is None:
+            self.carried[loop, direction].append((t_ready, None))
             return None  # no route: the path is down and its packets are lost
         delivery = deliver(route, t_ready, self._rng[loop, direction])
+        self.carried[loop, direction].append((t_ready, delivery.t_deliver))
         if self.meter is not None:
             self.meter.record(route, delivery)
         if delivery.t_deliver is not None:

@@ -14,7 +14,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from bus_schemas import Loss, Move, NetApplied, NetStats, NetworkEvent, Sample, keys
+from bus_schemas import (
+    Loss,
+    Move,
+    NetApplied,
+    NetStats,
+    NetworkEvent,
+    Proposal,
+    Sample,
+    keys,
+)
 from bus_schemas.envelope import RawEnvelope
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
@@ -27,6 +36,7 @@ class NetworkNode(Node):
     def __init__(self, ctx: NodeContext) -> None:
         super().__init__(ctx)
         self.carrier = PathCarrier(self.scenario, self.name)
+        self._proposals = 0
         if self.carrier.topology is not None:
             self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
@@ -62,12 +72,22 @@ class NetworkNode(Node):
         return apply
 
     def _publish_configuration(self, kind: str, source: str, paths: dict) -> None:
+        """Propose the configuration (``net/proposal``, for the coordination agent) and, as no
+        agent decides yet, apply it at once (``net/applied``)."""
         hops = {p: c["hops"] for p, c in paths.items()}
         self.log.info("network configuration (%s %s): hops %s", source, kind, hops)
+        self.publish(
+            keys.net_proposal(),
+            Proposal(id=self._proposals, event=kind, source=source, paths=paths),
+        )
+        self._proposals += 1
         self.publish(keys.net_applied(), NetApplied(event=kind, source=source, paths=paths))
 
     def _stats(self) -> None:
-        self.publish(keys.net_stats(), NetStats(nodes=self.carrier.energy(self.now)))
+        self.publish(
+            keys.net_stats(),
+            NetStats(paths=self.carrier.path_stats(self.now), nodes=self.carrier.energy(self.now)),
+        )
 
     def _on_injected(self, env: RawEnvelope, msg: NetworkEvent) -> None:
         """An event injected while the run goes on (``wncs inject``), stamped by the clock."""
