@@ -7,6 +7,8 @@ agent to call it thousands of times. At each instant ``t`` (integer ticks):
 
 1. each plant with something due at ``t`` (a sensor sample, a monitoring instant, an arriving
    command) integrates from its last stop to ``t`` (plant node: timers / actuator handler);
+   network reconfigurations and end-of-run statistics due at ``t`` are applied (the gateway's
+   timers fire in the first round at ``t``, before any packet of that instant);
 2. monitoring record and sensor samples at ``t``; samples enter their loop's sensor path, whose
    delivery time (or loss) comes from the same :class:`~gateway.carrier.PathCarrier` the
    network node uses (constant ``tau_d``, or drawn over a WSN);

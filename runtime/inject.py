@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -115,7 +114,7 @@ def send(endpoint: str, run_id: str, request: InjectRequest, *, timeout: float =
             codec.encode(
                 run=run_id,
                 src="inject",
-                seq=int(time.time_ns() % 2**31),
+                seq=0,
                 round=0,
                 t=0,
                 body=request,
