@@ -8,6 +8,8 @@ that instant, and publishes it on ``loop/<l>/u``. Set points of all loops of the
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from bus_schemas import Move, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
 from controllers.registry import build_law, uses_feedforward
@@ -44,7 +46,7 @@ class ControllerNode(Node):
     def _on_meas(self, env: RawEnvelope, sample: Sample) -> None:
         self._samples.append(sample)
 
-    def _on_setpoint(self, loop: str):  # noqa: ANN202
+    def _on_setpoint(self, loop: str) -> Callable[[RawEnvelope, Setpoint], None]:
         def handle(env: RawEnvelope, sp: Setpoint) -> None:
             self.setpoints[loop] = sp.value
             self._setpoints_changed = True

@@ -14,6 +14,7 @@ import time
 from collections.abc import Iterable, Mapping
 
 import zenoh
+from pydantic import BaseModel
 
 from bus_schemas import Done, InjectRequest, NetworkEvent, Stop, Tick, codec, keys
 from runtime.errors import NodeFault, ProtocolError, SchemaError
@@ -140,13 +141,16 @@ class ClockRunner:
     def _full(self, rel: str) -> str:
         return keys.full(self.run_id, rel)
 
-    def _publish(self, rel: str, body: Tick | Stop) -> None:
+    def _publish(
+        self, rel: str, body: BaseModel, *, round: int | None = None, t: int | None = None
+    ) -> None:
+        """Publish as the clock, stamped with the current round and time unless told otherwise."""
         payload = codec.encode(
             run=self.run_id,
             src="clock",
             seq=self._seq,
-            round=self.planner.round,
-            t=self.planner.t,
+            round=self.planner.round if round is None else round,
+            t=self.planner.t if t is None else t,
             body=body,
         )
         self._seq += 1
@@ -194,22 +198,7 @@ class ClockRunner:
         expected = dict(tick.expected)
         for network, event in self._injections:
             rel = keys.network_events(network)
-            payload = codec.encode(
-                run=self.run_id,
-                src="clock",
-                seq=self._seq,
-                round=tick.round - 1,
-                t=tick.t,
-                body=NetworkEvent(event=event),
-            )
-            self._seq += 1
-            self.session.put(
-                self._full(rel),
-                payload,
-                encoding=zenoh.Encoding(codec.ENCODING),
-                congestion_control=zenoh.CongestionControl.BLOCK,
-                express=True,
-            )
+            self._publish(rel, NetworkEvent(event=event), round=tick.round - 1, t=tick.t)
             expected[rel] = expected.get(rel, 0) + 1
         self._injections.clear()
         return Tick(round=tick.round, t=tick.t, expected=dict(sorted(expected.items())))

@@ -27,7 +27,7 @@ from typing import Any, TextIO
 import yaml
 
 from bus_schemas import Stop, Tick, codec, keys
-from runtime.errors import NodeFault
+from runtime.errors import NodeFault, SchemaError
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
 from runtime.time import to_units
@@ -95,7 +95,7 @@ class _Progress:
     def on_tick(self, sample: Any) -> None:
         try:
             tick = codec.decode(sample.payload.to_bytes(), Tick).body
-        except Exception:  # noqa: BLE001 - a progress display never fails a run
+        except SchemaError:  # a progress display never fails a run
             return
         if self.first_tick_at is None:
             self.first_tick_at = time.perf_counter()
@@ -104,7 +104,7 @@ class _Progress:
     def on_stop(self, sample: Any) -> None:
         try:
             self.stop = codec.decode(sample.payload.to_bytes(), Stop).body
-        except Exception:  # noqa: BLE001
+        except SchemaError:
             return
         self.stop_at = time.perf_counter()
 

@@ -6,6 +6,8 @@ draw-off flow) go straight to the plant's actuator key ``plant/<p>/actuator/<inp
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from bus_schemas import Move, Setpoint, keys
 from runtime.node import Node, NodeContext
 from runtime.time import to_ticks
@@ -21,9 +23,9 @@ class OperatorNode(Node):
         for dist in self.scenario.disturbances:
             self.at(to_ticks(dist.t), self._disturber(dist.plant, dist.input, dist.value))
 
-    def _publisher(self, loop: str, value: float):  # noqa: ANN202
+    def _publisher(self, loop: str, value: float) -> Callable[[], None]:
         return lambda: self.publish(keys.setpoint(loop), Setpoint(value=value))
 
-    def _disturber(self, plant: str, input_name: str, value: float):  # noqa: ANN202
+    def _disturber(self, plant: str, input_name: str, value: float) -> Callable[[], None]:
         key = keys.actuator(plant, input_name)
         return lambda: self.publish(key, Move(value=value, t_computed=self.now))
