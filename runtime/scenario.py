@@ -7,7 +7,7 @@ becomes a :class:`~runtime.errors.ConfigError` naming the file and the dotted fi
 Shape (see ``scenarios/jcstr_benchmark.yaml``)::
 
     name, time_unit, end_time, seed, clock: {...}
-    nodes:    name -> {kind: plant | controller | network | operator, ...}
+    nodes:    name -> {kind: plant | controller | network | gateway | operator | agent, ...}
     loops:    name -> {plant, sensor, actuator, controller, network, tau_s, tau_d, tau_a, setpoint}
     setpoints: [{t, loop, value}, ...]
 
@@ -23,6 +23,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from agents.wncsca.config import WncscaConfig
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
 from gateway.energy import EnergyConfig
@@ -210,7 +211,8 @@ NodeConfig = Annotated[
     | ControllerNodeConfig
     | NetworkNodeConfig
     | GatewayNodeConfig
-    | OperatorNodeConfig,
+    | OperatorNodeConfig
+    | WncscaConfig,
     Field(discriminator="kind"),
 ]
 
@@ -366,6 +368,7 @@ class Scenario(BaseModel):
             raise ValueError("setpoints: a schedule needs an operator node to publish it")
         if self.disturbances and not operators:
             raise ValueError("disturbances: a schedule needs an operator node to publish it")
+        self._check_agent()
         moved = {(lp.plant, lp.actuator) for lp in self.loops.values()}
         for i, dist in enumerate(self.disturbances):
             at = f"disturbances[{i}]"
@@ -390,6 +393,27 @@ class Scenario(BaseModel):
                 raise ValueError(f"setpoints[{i}].t: {change.t} is after end_time {self.end_time}")
         self._check_feedforward()
         return self
+
+    def _check_agent(self) -> None:
+        """At most one coordination agent; every loop it names must exist."""
+        agents = [n for n, node in self.nodes.items() if node.kind == "agent"]
+        if len(agents) > 1:
+            raise ValueError(f"nodes: at most one agent node, found {agents}")
+        for name in agents:
+            cfg = self.nodes[name]
+            named = [(f"order[{i}]", n) for i, n in enumerate(cfg.order or [])]
+            named += [(f"ideal_period.{n}", n) for n in cfg.ideal_period]
+            for mode in ("identification", "monitoring", "fault_detection"):
+                named += [(f"modes.{mode}.{n}", n) for n in getattr(cfg.modes, mode)]
+            if cfg.test is not None:
+                named += [
+                    (f"test.setpoints[{i}].loop", s.loop) for i, s in enumerate(cfg.test.setpoints)
+                ]
+            for where, loop in named:
+                if loop not in self.loops:
+                    raise ValueError(
+                        f"nodes.{name}.{where}: unknown loop {loop!r} (loops: {sorted(self.loops)})"
+                    )
 
     def _check_feedforward(self) -> None:
         """Every steady-state feedforward must be computable at every scheduled set point."""

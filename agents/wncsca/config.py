@@ -1,0 +1,147 @@
+"""Configuration of the WNCSCA coordination agent (seed 000, section III.E): the overshoot limit
+and tolerances of its searches, the set-point test it simulates, how it reads a proposal's delays,
+which method assigns the sampling periods, and the sampling periods of its operating modes.
+
+It is a scenario node (``kind: agent``); ``wncs analyze`` uses the same model with the defaults
+when a scenario has no agent node.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = [
+    "ESTIMATES",
+    "MODES",
+    "TestStep",
+    "SetpointTest",
+    "ModesConfig",
+    "WncscaConfig",
+]
+
+_STRICT = ConfigDict(frozen=True, extra="forbid")
+
+ESTIMATES = ("timestamps", "ping", "hops")
+"""The paper's three path-delay estimates (III.E step 1), as the gateway's proposals carry them."""
+
+MODES = ("startup", "setpoint_change", "identification", "steady_state", "fault_detection")
+"""Operating modes (seed 000, section II; DESIGN section 6)."""
+
+
+class TestStep(BaseModel):
+    """One set-point change of the agent's test."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0)
+    loop: str
+    value: float
+
+
+class SetpointTest(BaseModel):
+    """The closed-loop experiment whose overshoots the agent judges (seed 000, III.C: the level
+    step at 1.8 pu and the temperature step at 2.4 pu from the initial state)."""
+
+    model_config = _STRICT
+
+    end_time: float = Field(gt=0)
+    setpoints: list[TestStep] = Field(min_length=1)
+
+
+class ModesConfig(BaseModel):
+    """Sampling periods of the modes that do not use the negotiated control periods.
+
+    Periods are per loop in scenario time units; a loop not named keeps its control period.
+    """
+
+    model_config = _STRICT
+
+    identification: dict[str, float] = Field(
+        default_factory=dict, description="per-loop periods while the plant is identified"
+    )
+    monitoring: dict[str, float] = Field(
+        default_factory=dict,
+        description="steady state: loops open, sensors report at these periods",
+    )
+    fault_detection: dict[str, float] = Field(
+        default_factory=dict,
+        description="between monitoring and control: loops open, faster reports",
+    )
+
+    @model_validator(mode="after")
+    def _positive(self) -> ModesConfig:
+        for mode in ("identification", "monitoring", "fault_detection"):
+            for loop, period in getattr(self, mode).items():
+                if not period > 0:
+                    raise ValueError(f"{mode}.{loop}: a period must be > 0, got {period}")
+        return self
+
+
+class WncscaConfig(BaseModel):
+    """The coordination agent (a scenario node of ``kind: agent``)."""
+
+    model_config = _STRICT
+
+    kind: Literal["agent"] = "agent"
+    overshoot_limit: float = Field(default=25.0, gt=0, description="largest acceptable OS, %")
+    os_tolerance: float = Field(
+        default=1.0,
+        gt=0,
+        description="eps_OS: a search stops when an acceptable trial is this close to the limit, "
+        "percentage points (III.E step 3a)",
+    )
+    period_tolerance: float = Field(
+        default=0.01,
+        gt=0,
+        description="eps_L: the alternation stops when a loop's period changes by less, "
+        "time units (III.E step 3d)",
+    )
+    resolution: float = Field(
+        default=0.001, gt=0, description="trial periods are multiples of this, time units"
+    )
+    phase: Literal["worst", "fixed"] = Field(
+        default="worst",
+        description="overshoot of a trial: worst case over the set-point step's phase relative "
+        "to the sampling instants, or at the test's own step times (the paper)",
+    )
+    phases: int = Field(default=4, ge=1, le=64, description="phases tried in the worst case")
+    method: Literal["paper", "fast"] = "paper"
+    objective: Literal["paper", "energy"] = Field(
+        default="paper",
+        description="fast method: each loop's longest period with the others fixed (the "
+        "paper's answer), or the joint choice using the least network energy",
+    )
+    estimate: Literal["timestamps", "ping", "hops"] = Field(
+        default="hops",
+        description="which of a proposal's delay estimates is the control-path delay; a missing "
+        "one falls back to the others in the order timestamps, ping, hops",
+    )
+    order: list[str] | None = Field(
+        default=None, description="loops in the order the paper's method searches them"
+    )
+    ideal_period: dict[str, float] = Field(
+        default_factory=dict,
+        description="tau_si per loop, where the doubling starts (default: the benchmark period)",
+    )
+    max_period: float = Field(default=10.0, gt=0, description="longest period ever tried")
+    max_trials: int = Field(default=40, ge=2, description="trials per single-loop search")
+    max_alternations: int = Field(default=6, ge=1, description="rounds over all loops")
+    delay_resolution: float = Field(
+        default=0.001, gt=0, description="bisection of the delay bound stops at this width"
+    )
+    max_delay: float = Field(default=5.0, gt=0, description="largest delay bound looked for")
+    test: SetpointTest | None = Field(
+        default=None, description="the set-point test; default: the scenario's own schedule"
+    )
+    modes: ModesConfig = Field(default_factory=ModesConfig)
+
+    @model_validator(mode="after")
+    def _check(self) -> WncscaConfig:
+        for loop, period in self.ideal_period.items():
+            if not period > 0:
+                raise ValueError(f"ideal_period.{loop}: a period must be > 0, got {period}")
+        if self.order is not None and len(set(self.order)) != len(self.order):
+            raise ValueError(f"order: a loop is named twice in {self.order}")
+        return self

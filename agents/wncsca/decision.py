@@ -1,0 +1,161 @@
+"""Judging a proposed network configuration (seed 000, III.E steps 1-2).
+
+Step 1: a loop's control-path delay is the chosen estimate (time stamps, ping, or hops x per-hop
+delay) of its sensor path plus that of its actuator path when the actuator is on the WSN too.
+Step 2: accept the configuration (conditionally: periods are negotiated next) when every loop's
+delay is below its bound at the benchmark periods; otherwise reject it, naming each offending
+loop, its delay and its bound. A proposal that does not make sense (a path of an unknown loop, a
+negative or missing delay, a malformed entry) is *refused*: neither accepted nor rejected, so
+nothing changes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from agents.wncsca.bounds import DelayBound
+from agents.wncsca.config import ESTIMATES
+
+__all__ = ["Decision", "ProposalError", "control_path_delays", "decide"]
+
+_DIRECTIONS = ("sensor", "actuator")
+
+
+class ProposalError(ValueError):
+    """A proposal that cannot be judged; the message names the path and field."""
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The verdict on one proposal: ``accept``, ``reject`` or ``refuse`` (malformed)."""
+
+    proposal: int | None
+    verdict: str
+    reasons: tuple[str, ...]
+    delays: dict[str, float] = field(default_factory=dict)
+    bounds: dict[str, float] = field(default_factory=dict)
+    estimates_used: dict[str, str] = field(default_factory=dict)
+    offending: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "proposal": self.proposal,
+            "verdict": self.verdict,
+            "reasons": list(self.reasons),
+            "delays": dict(self.delays),
+            "bounds": dict(self.bounds),
+            "estimates_used": dict(self.estimates_used),
+            "offending": list(self.offending),
+        }
+
+
+def _estimate(path: str, entry: Any, preferred: str) -> tuple[float | None, str | None]:
+    """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down."""
+    if not isinstance(entry, Mapping):
+        raise ProposalError(f"paths.{path}: expected a mapping, got {type(entry).__name__}")
+    hops = entry.get("hops")
+    if isinstance(hops, bool) or not isinstance(hops, int):
+        raise ProposalError(f"paths.{path}.hops: missing or not an integer ({hops!r})")
+    estimates = entry.get("estimates")
+    if not isinstance(estimates, Mapping):
+        raise ProposalError(f"paths.{path}.estimates: missing or not a mapping")
+    unknown = sorted(set(estimates) - set(ESTIMATES))
+    if unknown:
+        raise ProposalError(f"paths.{path}.estimates: unknown estimate(s) {unknown}")
+    for name, value in estimates.items():
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ProposalError(f"paths.{path}.estimates.{name}: not a number ({value!r})")
+        if not math.isfinite(value) or value < 0:
+            raise ProposalError(f"paths.{path}.estimates.{name}: a delay must be >= 0, got {value}")
+    if hops < 0:
+        return None, None
+    order = [preferred, *(e for e in ESTIMATES if e != preferred)]
+    for name in order:
+        value = estimates.get(name)
+        if value is not None:
+            return float(value), name
+    raise ProposalError(f"paths.{path}.estimates: a routed path ({hops} hops) has no estimate")
+
+
+def control_path_delays(
+    paths: Any, loops: tuple[str, ...], preferred: str
+) -> tuple[dict[str, float | None], dict[str, str]]:
+    """Each loop's control-path delay (``None``: a path of the loop is down) and the estimate used.
+
+    Raises
+    ------
+    ProposalError
+        For a path of an unknown loop or direction, a malformed entry, a negative delay, or a
+        loop with no sensor path.
+    """
+    if not isinstance(paths, Mapping):
+        raise ProposalError("paths: missing or not a mapping")
+    delays: dict[str, float | None] = {}
+    used: dict[str, str] = {}
+    for path in sorted(paths):
+        loop, _, direction = str(path).rpartition(".")
+        if loop not in loops:
+            raise ProposalError(f"paths.{path}: unknown loop {loop!r} (loops: {list(loops)})")
+        if direction not in _DIRECTIONS:
+            raise ProposalError(f"paths.{path}: unknown direction {direction!r}")
+        value, name = _estimate(path, paths[path], preferred)
+        if value is None or (loop in delays and delays[loop] is None):
+            delays[loop] = None
+            continue
+        delays[loop] = delays.get(loop, 0.0) + value
+        used[f"{loop}.{direction}"] = name
+    missing = [n for n in loops if f"{n}.sensor" not in paths]
+    if missing:
+        raise ProposalError(f"paths: no sensor path for loop(s) {missing}")
+    return delays, used
+
+
+def decide(
+    proposal: int | None,
+    paths: Any,
+    bounds: Mapping[str, DelayBound],
+    preferred: str,
+    *,
+    wired: Mapping[str, float] | None = None,
+) -> Decision:
+    """Accept or reject a proposal (III.E step 2); refuse it when it is malformed.
+
+    ``wired`` gives the constant delay of loops not carried by the proposing network (they
+    need no path in the proposal).
+    """
+    loops = tuple(sorted(bounds))
+    wired = dict(wired or {})
+    carried = tuple(n for n in loops if n not in wired)
+    try:
+        delays, used = control_path_delays(paths, carried, preferred)
+    except ProposalError as err:
+        return Decision(proposal, "refuse", (f"proposal refused: {err}",))
+    delays = {**{n: float(v) for n, v in wired.items()}, **delays}
+    limits = {n: bounds[n].tau_d_max for n in loops}
+    reasons, offending = [], []
+    for n in loops:
+        d = delays[n]
+        if d is None:
+            reasons.append(f"{n}: control path down (no route)")
+            offending.append(n)
+        elif not d < limits[n]:
+            reasons.append(
+                f"{n}: control-path delay {d:.4g} >= its bound {limits[n]:.4g} "
+                "at the benchmark periods"
+            )
+            offending.append(n)
+    if offending:
+        return Decision(
+            proposal, "reject", tuple(reasons), _known(delays), limits, used, tuple(offending)
+        )
+    reasons = [f"{n}: delay {delays[n]:.4g} < bound {limits[n]:.4g}" for n in loops]
+    return Decision(proposal, "accept", tuple(reasons), _known(delays), limits, used)
+
+
+def _known(delays: Mapping[str, float | None]) -> dict[str, float]:
+    return {n: float(v) for n, v in delays.items() if v is not None}
