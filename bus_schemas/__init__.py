@@ -4,36 +4,46 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 """
 
 from bus_schemas.bodies import (
+    Decision,
     Done,
     InjectRequest,
     Loss,
+    ModeRequest,
     Move,
     NetApplied,
     NetStats,
     NetworkEvent,
     PlantState,
     Proposal,
+    Rates,
     Sample,
+    SamplingPeriod,
     Setpoint,
     Stop,
     Tick,
+    Timing,
 )
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope
 
 __all__ = [
     "SCHEMA_VERSION",
     "Envelope",
+    "Decision",
     "Done",
     "InjectRequest",
     "Loss",
+    "ModeRequest",
     "Move",
     "NetApplied",
     "NetStats",
     "NetworkEvent",
     "PlantState",
     "Proposal",
+    "Rates",
     "Sample",
+    "SamplingPeriod",
     "Setpoint",
     "Stop",
     "Tick",
+    "Timing",
 ]

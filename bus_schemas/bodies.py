@@ -22,6 +22,11 @@ __all__ = [
     "NetStats",
     "PathStats",
     "Proposal",
+    "Decision",
+    "Rates",
+    "SamplingPeriod",
+    "Timing",
+    "ModeRequest",
     "InjectRequest",
     "NetworkEvent",
     "Tick",
@@ -61,11 +66,18 @@ class Move(BaseModel):
 
 
 class Setpoint(BaseModel):
-    """A new set point of one loop (``ops/setpoint/<loop>``)."""
+    """A new set point of one loop: requested by operations (``ops/setpoint/<loop>``) or, when a
+    coordination agent governs the loops, passed on by it to the controllers (``loop/<l>/sp``)."""
 
     model_config = _FROZEN
 
     value: float
+    t_apply: int | None = Field(
+        default=None,
+        ge=0,
+        strict=True,
+        description="announced change: when it is to be applied, ticks (None: at once)",
+    )
 
     _check_value = field_validator("value")(_finite)
 
@@ -120,9 +132,16 @@ class NetApplied(BaseModel):
 
     model_config = _FROZEN
 
-    event: str = Field(description="'initial', or the type of the event that caused it")
-    source: Literal["initial", "scenario", "injected"]
+    event: str = Field(
+        description="'initial', the type of the event that caused it, 'rates' (sampling periods "
+        "applied) or 'no_alternative' (a rejected proposal has no alternative left)"
+    )
+    source: Literal["initial", "scenario", "injected", "alternative", "agent"]
     paths: dict[str, PathConfig] = Field(description="path '<loop>.<direction>' -> its route")
+    proposal: int | None = Field(default=None, description="the accepted proposal's id")
+    periods: dict[str, int] = Field(
+        default_factory=dict, description="loop -> sampling period now applied, ticks"
+    )
 
 
 class NodeStats(BaseModel):
@@ -165,8 +184,90 @@ class Proposal(BaseModel):
 
     id: int = Field(ge=0, strict=True, description="increasing per gateway")
     event: str
-    source: Literal["initial", "scenario", "injected"]
+    source: Literal["initial", "scenario", "injected", "alternative"]
     paths: dict[str, PathConfig]
+
+
+class Decision(BaseModel):
+    """The coordination agent's verdict (``wncsca/decision``) on a proposal, a mode change or a
+    set-point request: ``accept``, ``reject`` (a proposal whose delays exceed a loop's bound),
+    ``refuse`` (malformed: nothing changes) or ``keep`` (no alternative left: the last accepted
+    configuration stays in force)."""
+
+    model_config = _FROZEN
+
+    subject: Literal["proposal", "mode", "setpoint"]
+    network: str | None = Field(default=None, description="the proposing network node")
+    proposal: int | None = Field(default=None, description="the proposal's id, if any")
+    verdict: Literal["accept", "reject", "refuse", "keep"]
+    reasons: tuple[str, ...]
+    delays: dict[str, float] = Field(
+        default_factory=dict, description="loop -> control-path delay judged, time units"
+    )
+    bounds: dict[str, float] = Field(
+        default_factory=dict, description="loop -> largest tolerable delay, time units"
+    )
+    offending: tuple[str, ...] = Field(default=(), description="loops over their bound")
+    paths: tuple[str, ...] = Field(
+        default=(), description="paths of the offending loops, for the gateway's alternative"
+    )
+
+
+class Rates(BaseModel):
+    """Sampling periods and loop states the agent assigns (``wncsca/rates``)."""
+
+    model_config = _FROZEN
+
+    mode: str
+    periods: dict[str, int] = Field(description="loop -> sampling period, ticks")
+    closed: dict[str, bool] = Field(description="loop -> closed (False: output held)")
+    control_periods: dict[str, int] = Field(
+        description="loop -> negotiated control period, ticks (restored for set-point changes)"
+    )
+    proposal: int | None = Field(description="the accepted configuration the periods are for")
+    method: str | None = Field(default=None, description="how the control periods were found")
+    overshoot_pct: dict[str, float | None] = Field(
+        default_factory=dict, description="predicted worst-case overshoot at the control periods"
+    )
+    assignment: dict | None = Field(
+        default=None, description="a new negotiation: delays, periods, search trace (time units)"
+    )
+    energy: dict | None = Field(
+        default=None, description="projected network lifetime, assigned vs benchmark periods"
+    )
+
+    @model_validator(mode="after")
+    def _positive(self) -> Rates:
+        for loop, period in {**self.periods, **self.control_periods}.items():
+            if period <= 0:
+                raise ValueError(f"periods.{loop}: must be > 0 ticks, got {period}")
+        return self
+
+
+class Timing(BaseModel):
+    """Wall-clock time the agent took to decide on a proposal (``wncsca/timing``): a measurement,
+    so it is left out of the history digest."""
+
+    model_config = _FROZEN
+
+    proposal: int | None
+    decision_s: float = Field(ge=0)
+
+
+class SamplingPeriod(BaseModel):
+    """When a sensor samples from now on (``plant/<p>/sampling/<signal>``), from its network."""
+
+    model_config = _FROZEN
+
+    period: int = Field(gt=0, strict=True, description="sampling period, ticks")
+
+
+class ModeRequest(BaseModel):
+    """An operating-mode change for the coordination agent (``ops/mode``)."""
+
+    model_config = _FROZEN
+
+    mode: str
 
 
 class InjectRequest(BaseModel):

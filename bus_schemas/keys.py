@@ -35,6 +35,12 @@ __all__ = [
     "net_proposal",
     "inject",
     "network_events",
+    "sampling",
+    "loop_setpoint",
+    "ops_mode",
+    "wncsca_decision",
+    "wncsca_rates",
+    "wncsca_timing",
 ]
 
 PREFIX = "wncs"
@@ -154,3 +160,33 @@ def setpoint(loop: str) -> str:
 
 def setpoint_all() -> str:
     return "ops/setpoint/*"
+
+
+def sampling(plant: str, signal: str) -> str:
+    """Sampling period of one sensor, set by the network that carries its loop."""
+    return f"plant/{check_name(plant, 'plant')}/sampling/{check_name(signal, 'signal')}"
+
+
+def loop_setpoint(loop: str) -> str:
+    """Set point as passed on to the controllers by the coordination agent."""
+    return f"loop/{check_name(loop, 'loop')}/sp"
+
+
+def ops_mode() -> str:
+    """Operating-mode requests for the coordination agent."""
+    return "ops/mode"
+
+
+def wncsca_decision() -> str:
+    """The coordination agent's verdicts."""
+    return "wncsca/decision"
+
+
+def wncsca_rates() -> str:
+    """The coordination agent's sampling periods and loop states."""
+    return "wncsca/rates"
+
+
+def wncsca_timing() -> str:
+    """Wall-clock decision times of the agent: measurements, excluded from the history digest."""
+    return "wncsca/timing"

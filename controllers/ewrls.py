@@ -469,6 +469,10 @@ class SelfTuningNLPI:
         )
         return cls(pi, est)
 
+    def resume(self, t: float) -> None:
+        """The loop was open until ``t``: the PI integrates from ``t`` on re-closing."""
+        self.pi.resume(t)
+
     def reset(self) -> None:
         """Back to the initial guesses; forget the integral and the data."""
         self.estimator.reset()

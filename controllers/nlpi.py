@@ -236,6 +236,11 @@ class _TwoDofBase:
     def _rest_integral(self, y: float) -> float:
         raise NotImplementedError
 
+    def resume(self, t: float) -> None:
+        """The loop was open (output held) until ``t``: integrate from ``t`` on re-closing."""
+        if self._t_prev is not None:
+            self._t_prev = t
+
     def step(self, t: float, y: float, r: float) -> float:
         """One execution at time ``t`` with measured level ``y`` and set point ``r``; returns ``u``.
 

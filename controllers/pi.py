@@ -73,6 +73,12 @@ class PI:
         self._t_prev: float | None = None
         self._e_prev = 0.0
 
+    def resume(self, t: float) -> None:
+        """The loop was open (output held) until ``t``: the next execution integrates from ``t``,
+        not over the whole open interval (bumpless re-closing)."""
+        if self._t_prev is not None:
+            self._t_prev = t
+
     def set_feedforward(self, u_bar: float) -> None:
         """Set the steady-state component ``u_bar`` (seed 000, eq. (5)-(7))."""
         self.u_bar = float(u_bar)

@@ -78,6 +78,7 @@ class PathCarrier:
                 topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
                 self.routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
         self.topology = topology
+        self.periods = {n: lp.tau_s for n, lp in self.loops.items()}
         self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
         self.stamps = {path: TimestampEstimator() for path in self.routes}
         # what each routed path carried: (t_ready, t_deliver or None), for net/stats
@@ -115,6 +116,29 @@ class PathCarrier:
         for loop, direction in list(self.routes):
             self.routes[loop, direction] = routes[f"{loop}.{direction}"]
         return self.configuration(t)
+
+    def alternatives(self) -> Any:
+        """The gateway's further proposals for the topology as it is now
+        (:class:`gateway.topology.Alternatives`)."""
+        if self.topology is None:
+            raise ValueError(f"{self.node}: a wired network has no alternative routes")
+        return self.topology.alternatives()
+
+    def set_routes(self, routes: dict[str, Any], t: int) -> dict[str, dict[str, Any]]:
+        """Carry the paths over ``routes`` (path name -> route, e.g. an alternative) from ``t``;
+        return :meth:`configuration` after it."""
+        if self.meter is not None:
+            self.meter.advance(t)
+        for loop, direction in list(self.routes):
+            self.routes[loop, direction] = routes[f"{loop}.{direction}"]
+        return self.configuration(t)
+
+    def set_period(self, loop: str, period: float, t: int) -> None:
+        """Loop ``loop``'s sensor samples every ``period`` (time units) from ``t``: for the
+        projected lifetimes. Idle listening is charged up to ``t`` first."""
+        if self.meter is not None:
+            self.meter.advance(t)
+        self.periods[loop] = period
 
     def configuration(self, t: int) -> dict[str, dict[str, Any]]:
         """Path (``<loop>.<direction>``) -> hops (-1: down), route and the paper's three delay
@@ -168,7 +192,7 @@ class PathCarrier:
             return {}
         self.meter.advance(t)
         routes = {f"{lp}.{d}": r for (lp, d), r in self.routes.items() if d == SENSOR}
-        periods = {f"{lp}.{d}": self.loops[lp].tau_s for (lp, d) in self.routes if d == SENSOR}
+        periods = {f"{lp}.{d}": self.periods[lp] for (lp, d) in self.routes if d == SENSOR}
         projected = projected_lifetime(
             self.topology, routes, periods, self.meter.config, self.meter
         )

@@ -5,9 +5,18 @@ Sensor samples (``plant/<p>/sensor/<s>``) are delivered on ``loop/<l>/meas``; co
 (``loop/<l>/u``) on ``plant/<p>/actuator/<i>``. When a packet arrives, its delivery time comes from
 :class:`gateway.carrier.PathCarrier` (constant delays, or per-hop delays with retries and loss
 drawn from the path's own seeded generator); a lost packet is reported on ``net/lost`` and never
-delivered. A
-delivery due now is published in this round (a microstep), a later one is a timer, so in
-real-time mode delays pass in wall time through the same clock.
+delivered. A delivery due now is published in this round (a microstep), a later one is a timer,
+so in real-time mode delays pass in wall time through the same clock.
+
+A gateway proposes its configuration (``net/proposal``: routes, hops, the three delay estimates)
+at start and after every reconfiguration. With no coordination agent in the scenario it applies
+it at once (``net/applied``). Under an agent (seed 000, III.E) it waits for the verdict on
+``wncsca/decision``: accepted, it confirms on ``net/applied``; rejected, it proposes its next
+alternative (routes with a lower mean delay for the offending paths,
+:class:`gateway.topology.Alternatives`), or, with none left, says so (``net/applied`` with event
+``no_alternative``) and keeps carrying its best routes. Every network node, wired or not, applies
+the sampling periods the agent assigns (``wncsca/rates``) by telling the plants' sensors
+(``plant/<p>/sampling/<s>``) and confirms them on ``net/applied`` (event ``rates``).
 """
 
 from __future__ import annotations
@@ -15,19 +24,22 @@ from __future__ import annotations
 from typing import Any
 
 from bus_schemas import (
+    Decision,
     Loss,
     Move,
     NetApplied,
     NetStats,
     NetworkEvent,
     Proposal,
+    Rates,
     Sample,
+    SamplingPeriod,
     keys,
 )
 from bus_schemas.envelope import RawEnvelope
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
-from runtime.time import to_ticks
+from runtime.time import to_ticks, to_units
 
 __all__ = ["NetworkNode"]
 
@@ -36,7 +48,12 @@ class NetworkNode(Node):
     def __init__(self, ctx: NodeContext) -> None:
         super().__init__(ctx)
         self.carrier = PathCarrier(self.scenario, self.name)
+        self.governed = self.scenario.agent_node() is not None
         self._proposals = 0
+        self._awaiting: tuple[int, str, str, dict] | None = None  # id, event, source, paths
+        self._paths: dict = {}
+        self._alternatives: Any = None
+        self._periods = {n: to_ticks(lp.tau_s) for n, lp in self.carrier.loops.items()}
         if self.carrier.topology is not None:
             self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
@@ -49,6 +66,10 @@ class NetworkNode(Node):
                 for t in range(period, end, period):
                     self.at(t, self._stats)
             self.at(end, self._stats)
+            if self.governed:
+                self.subscribe(keys.wncsca_decision(), Decision, self._on_decision)
+        if self.governed and self.carrier.loops:
+            self.subscribe(keys.wncsca_rates(), Rates, self._on_rates)
         for name, loop in self.carrier.loops.items():
             self.subscribe(
                 keys.sensor(loop.plant, loop.sensor),
@@ -67,21 +88,75 @@ class NetworkNode(Node):
                 paths = self.carrier.configuration(self.now)
             else:
                 paths = self.carrier.apply(event, self.now)
-            self._publish_configuration(kind, source, paths)
+            self._alternatives = None  # a new state of the network: alternatives start afresh
+            self._propose(kind, source, paths)
 
         return apply
 
-    def _publish_configuration(self, kind: str, source: str, paths: dict) -> None:
-        """Propose the configuration (``net/proposal``, for the coordination agent) and, as no
-        agent decides yet, apply it at once (``net/applied``)."""
+    def _propose(self, kind: str, source: str, paths: dict) -> None:
+        """Propose the configuration (``net/proposal``); without an agent, apply it at once."""
         hops = {p: c["hops"] for p, c in paths.items()}
-        self.log.info("network configuration (%s %s): hops %s", source, kind, hops)
+        self.log.info(
+            "network configuration #%d (%s %s): hops %s", self._proposals, source, kind, hops
+        )
+        self._paths = paths
         self.publish(
             keys.net_proposal(),
             Proposal(id=self._proposals, event=kind, source=source, paths=paths),
         )
+        if self.governed:
+            self._awaiting = (self._proposals, kind, source, paths)
+        else:
+            self.publish(keys.net_applied(), NetApplied(event=kind, source=source, paths=paths))
         self._proposals += 1
-        self.publish(keys.net_applied(), NetApplied(event=kind, source=source, paths=paths))
+
+    def _on_decision(self, env: RawEnvelope, decision: Decision) -> None:
+        if decision.subject != "proposal" or decision.network not in (None, self.name):
+            return
+        if self._awaiting is None or decision.proposal != self._awaiting[0]:
+            return  # not about the proposal waiting for a verdict
+        pid, kind, source, paths = self._awaiting
+        if decision.verdict == "accept":
+            self._awaiting = None
+            self.publish(
+                keys.net_applied(),
+                NetApplied(event=kind, source=source, paths=paths, proposal=pid),
+            )
+        elif decision.verdict == "reject":
+            if self._alternatives is None:
+                self._alternatives = self.carrier.alternatives()
+            routes = self._alternatives.next(decision.paths or None)
+            if routes is None:
+                self._awaiting = None
+                self.log.warning("proposal #%d rejected and no alternative is left", pid)
+                self.publish(
+                    keys.net_applied(),
+                    NetApplied(event="no_alternative", source="agent", paths=paths, proposal=pid),
+                )
+                return
+            self._propose("alternative", "alternative", self.carrier.set_routes(routes, self.now))
+
+    def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
+        changed = {}
+        for name, loop in self.carrier.loops.items():
+            period = rates.periods.get(name)
+            if period is None or period == self._periods[name]:
+                continue
+            self._periods[name] = period
+            self.carrier.set_period(name, to_units(period), self.now)
+            self.publish(keys.sampling(loop.plant, loop.sensor), SamplingPeriod(period=period))
+            changed[name] = period
+        if changed:
+            self.publish(
+                keys.net_applied(),
+                NetApplied(
+                    event="rates",
+                    source="agent",
+                    paths=self._paths,
+                    proposal=rates.proposal,
+                    periods=dict(self._periods),
+                ),
+            )
 
     def _stats(self) -> None:
         self.publish(
@@ -99,7 +174,8 @@ class NetworkNode(Node):
         except ValueError as err:  # e.g. a node that is not there any more: refused, run goes on
             self.log.warning("injected event %s refused: %s", msg.event, err)
             return
-        self._publish_configuration(event.type, "injected", paths)
+        self._alternatives = None
+        self._propose(event.type, "injected", paths)
 
     def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:

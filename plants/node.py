@@ -4,6 +4,10 @@ It samples each sensor at its loop's ``tau_s`` (``plant/<p>/sensor/<s>``), appli
 receives (``plant/<p>/actuator/<i>``) from their time on (zero-order hold), and records its true
 state on a monitoring grid (``plant/<p>/state``, sent in batches when it samples and at the end).
 
+A sensor's period can be changed while the run goes on (``plant/<p>/sampling/<s>``, from the
+network that carries its loop, as the coordination agent assigns it): the next sample is then one
+new period after the last one taken, or at once if that instant has passed.
+
 It integrates lazily, only up to instants where it samples or receives a command, cutting every
 segment at the monitoring grid: its trajectory does not depend on other nodes' timers, and the
 ``direct`` engine integrates over exactly the same segments.
@@ -15,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from bus_schemas import Move, PlantState, Sample, keys
+from bus_schemas import Move, PlantState, Sample, SamplingPeriod, keys
 from bus_schemas.envelope import RawEnvelope
 from plants.integrate import integrator_of
 from runtime.node import Node, NodeContext
@@ -40,8 +44,17 @@ class PlantNode(Node):
         self._records_t: list[int] = []
         self._records_x: list[list[float]] = []
         self.noise = dict(cfg.noise)
+        self._rngs: dict[str, Any] = {}
+        self.periods: dict[str, int] = {}
+        self._last_sample: dict[str, int] = {}
+        self._generation: dict[str, int] = {}
         for loop in self.scenario.loops_of_plant(self.name).values():
-            self.every(to_ticks(loop.tau_s), self._sampler(loop.sensor))
+            self.periods[loop.sensor] = to_ticks(loop.tau_s)
+            self._generation[loop.sensor] = 0
+            self.at(0, self._sampler(loop.sensor, 0))
+            self.subscribe(
+                keys.sampling(self.name, loop.sensor), SamplingPeriod, self._on_period(loop.sensor)
+            )
         for input_name in self.model.input_names:  # loop actuators and scheduled disturbances
             self.subscribe(keys.actuator(self.name, input_name), Move, self._actuator(input_name))
         self.at(self.end, self._final)
@@ -76,20 +89,46 @@ class PlantNode(Node):
         self._integrate_to(self.now)
         self._send_records()
 
-    def _sampler(self, signal: str) -> Any:
+    def _sampler(self, signal: str, generation: int) -> Any:
+        """A sample of ``signal`` now, and the next one a period later (unless a new period has
+        rescheduled the sensor since: then this timer is stale and does nothing)."""
         index = self.model.output_names.index(signal)
         sigma = self.noise.get(signal, 0.0)
-        rng = self.scenario.sensor_rng(self.name, signal)
+        rng = self._rngs.setdefault(signal, self.scenario.sensor_rng(self.name, signal))
 
         def sample() -> None:
+            if generation != self._generation[signal]:
+                return
             self._integrate_to(self.now)
             y = float(self.model.outputs(self.x)[index])
             if sigma > 0.0:
                 y += sigma * float(rng.standard_normal())
             self.publish(keys.sensor(self.name, signal), Sample(value=y, t_sampled=self.now))
             self._send_records()
+            self._last_sample[signal] = self.now
+            nxt = self.now + self.periods[signal]
+            if nxt <= self.end:
+                self.at(nxt, self._sampler(signal, generation))
 
         return sample
+
+    def _on_period(self, signal: str) -> Any:
+        def apply(env: RawEnvelope, msg: SamplingPeriod) -> None:
+            if msg.period == self.periods[signal]:
+                return
+            self.log.info(
+                "sensor %s: period %s -> %s ticks", signal, self.periods[signal], msg.period
+            )
+            self.periods[signal] = msg.period
+            self._generation[signal] += 1
+            last = self._last_sample.get(signal)
+            nxt = self.now if last is None else max(last + msg.period, self.now)
+            if last == self.now:
+                nxt = self.now + msg.period  # sampled in this instant already
+            if nxt <= self.end:
+                self.at(nxt, self._sampler(signal, self._generation[signal]))
+
+        return apply
 
     def _actuator(self, input_name: str) -> Any:
         index = self.model.input_names.index(input_name)

@@ -88,6 +88,11 @@ def simulate(scenario: Scenario) -> RunRecord:
     scenario : Scenario
         A validated scenario; use :meth:`Scenario.with_loops` to vary ``tau_s`` / ``tau_d``.
     """
+    if scenario.agent_node() is not None:
+        raise ValueError(
+            f"scenario {scenario.name!r}: the direct engine has no coordination agent "
+            f"(node {scenario.agent_node()!r}); run it on the bus"
+        )
     wall0 = time.perf_counter()
     end = to_ticks(scenario.end_time)
     plants: dict[str, _Plant] = {}
@@ -206,6 +211,8 @@ def simulate(scenario: Scenario) -> RunRecord:
                     "event": "initial" if event is None else event.type,
                     "source": "initial" if event is None else "scenario",
                     "paths": paths,
+                    "proposal": None,  # no agent: applied at once, as the gateway node does
+                    "periods": {},
                 }
             )
         # 2. monitoring record and sensor samples

@@ -60,11 +60,14 @@ def read_meta(path: str | Path) -> dict[str, Any]:
 
 
 def messages_digest(path: str | Path) -> str:
-    """SHA-256 of the message table, row by row in id order (no run id in it)."""
+    """SHA-256 of the message table, row by row in id order (no run id in it), without the
+    agent's wall-clock measurements (``wncsca/timing``), which no seed can reproduce."""
     h = hashlib.sha256()
     with connect(path) as conn:
         rows = conn.execute("SELECT round, t, key, src, seq, body FROM messages ORDER BY id")
         for rnd, t, key, src, seq, body in rows:
+            if key == keys.wncsca_timing():
+                continue
             h.update(f"{rnd}|{t}|{key}|{src}|{seq}|".encode())
             h.update(body)
             h.update(b"\n")
@@ -95,12 +98,18 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
         if cfg.kind == "plant":
             rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
     moves: dict[str, dict[int, list[float]]] = {}
+    # the set points the controllers followed (from operations, or passed on by the agent)
+    sp_keys = {scenario.setpoint_key(name): name for name in scenario.loops}
     with connect(path) as conn:
         rows = conn.execute("SELECT t, key, body FROM messages ORDER BY id")
         for t, key, body in rows:
             rec.published[key] = rec.published.get(key, 0) + 1
             parts = key.split("/")
-            if len(parts) == 3 and parts[0] == "loop" and parts[1] in rec.loops:
+            if key in sp_keys:
+                rec.loops[sp_keys[key]].setpoints.append(
+                    (t, float(codec.unpack_mapping(body)["value"]))
+                )
+            elif len(parts) == 3 and parts[0] == "loop" and parts[1] in rec.loops:
                 loop = rec.loops[parts[1]]
                 value = codec.unpack_mapping(body)
                 if parts[2] == "meas":
@@ -112,7 +121,22 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                         float(value["value"])
                     )
             elif key == keys.net_applied():
-                rec.configurations.append({"t": t, **codec.unpack_mapping(body)})
+                applied = {"t": t, **codec.unpack_mapping(body)}
+                if applied["event"] in ("rates", "no_alternative"):
+                    rec.wncsca.setdefault("applied", []).append(applied)
+                else:
+                    rec.configurations.append(applied)
+            elif key == keys.net_proposal() and scenario.agent_node() is not None:
+                rec.wncsca.setdefault("proposals", []).append(
+                    {"t": t, **codec.unpack_mapping(body)}
+                )
+            elif key in (keys.wncsca_decision(), keys.wncsca_rates(), keys.wncsca_timing()):
+                name = {
+                    keys.wncsca_decision(): "decisions",
+                    keys.wncsca_rates(): "rates",
+                    keys.wncsca_timing(): "timing",
+                }[key]
+                rec.wncsca.setdefault(name, []).append({"t": t, **codec.unpack_mapping(body)})
             elif key == keys.net_stats():
                 rec.net_nodes.update(codec.unpack_mapping(body)["nodes"])  # the last one wins
             elif key == keys.net_lost():
@@ -123,10 +147,6 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                         lost_loop.lost += 1
                     else:
                         lost_loop.lost_moves += 1
-            elif len(parts) == 3 and parts[:2] == ["ops", "setpoint"] and parts[2] in rec.loops:
-                rec.loops[parts[2]].setpoints.append(
-                    (t, float(codec.unpack_mapping(body)["value"]))
-                )
             elif len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
                 plant = rec.plants.get(parts[1])
                 if plant is not None:

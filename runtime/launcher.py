@@ -27,7 +27,7 @@ from typing import Any, TextIO
 import yaml
 
 from bus_schemas import Stop, Tick, codec, keys
-from runtime.errors import NodeFault, SchemaError
+from runtime.errors import ConfigError, NodeFault, SchemaError
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
 from runtime.time import to_units
@@ -148,6 +148,12 @@ def launch(
     scenario = load_scenario(scenario_path)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
+    if engine == "direct" and scenario.agent_node() is not None:
+        raise ConfigError(
+            f"{scenario_path}: nodes.{scenario.agent_node()}: the direct engine has no "
+            "coordination agent; run it on the bus (--engine threads or processes), or ask "
+            "for the agent's analysis alone with `wncs analyze`"
+        )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / SCENARIO_FILE).write_text(
@@ -408,7 +414,7 @@ def _run_threads(
                 node_class(scenario, name)(ctx).run()
         except Exception as err:  # noqa: BLE001 - reported as the node's failure
             errors[name] = f"{type(err).__name__}: {err}"
-            log.error("node %s failed: %s", name, err)
+            log.exception("node %s failed: %s", name, err)
         finally:
             session.close()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from agents.operator.node import OperatorNode
+from agents.wncsca.node import WncscaNode
 from controllers.node import ControllerNode
 from gateway.node import NetworkNode
 from plants.node import PlantNode
@@ -18,6 +19,7 @@ NODE_CLASSES: dict[str, type[Node]] = {
     "network": NetworkNode,
     "gateway": NetworkNode,
     "operator": OperatorNode,
+    "agent": WncscaNode,
 }
 
 

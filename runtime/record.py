@@ -14,7 +14,14 @@ import numpy as np
 from runtime.metrics import iae, step_metrics
 from runtime.time import to_units
 
-__all__ = ["LoopRecord", "PlantRecord", "RunRecord", "summarize", "loop_metrics"]
+__all__ = [
+    "LoopRecord",
+    "PlantRecord",
+    "RunRecord",
+    "summarize",
+    "loop_metrics",
+    "wncsca_summary",
+]
 
 
 @dataclass
@@ -70,6 +77,7 @@ class RunRecord:
     hops: dict[str, int] = field(default_factory=dict)  # loop -> sensor-path hops (0: wired)
     configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, paths
     net_nodes: dict[str, Any] = field(default_factory=dict)  # WSN node -> energy at the end
+    wncsca: dict[str, list] = field(default_factory=dict)  # proposals, decisions, rates, ...
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -182,6 +190,67 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
             if c["source"] != "initial"
         ],
         "dropped_nodes": dict(sorted(rec.dropped_nodes.items())),
+        **({"wncsca": wncsca_summary(rec.wncsca)} if rec.wncsca else {}),
         "wall_s": rec.wall_s,
         "phases_s": rec.phases,
+    }
+
+
+def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
+    """The coordination agent's part of ``summary.json``: ``decisions`` (time, subject, proposal,
+    verdict, reasons, delays, bounds), ``assignments`` (time, mode, period and closed state per
+    loop, predicted overshoot, method, search trace when negotiated) and ``energy`` (projected
+    network lifetime under the assigned periods against the benchmark periods, per negotiation).
+    Times in time units; periods in time units."""
+    timing = {}
+    for entry in raw.get("timing", []):
+        timing.setdefault(entry["proposal"], entry["decision_s"])
+    decisions = []
+    for d in raw.get("decisions", []):
+        entry = {**d, "t": to_units(d["t"])}
+        if d.get("subject") == "proposal" and d.get("proposal") in timing:
+            entry["decision_time_s"] = timing[d["proposal"]]
+        decisions.append(entry)
+    assignments, energy = [], []
+    for r in raw.get("rates", []):
+        t = to_units(r["t"])
+        assignments.append(
+            {
+                "t": t,
+                "mode": r["mode"],
+                "proposal": r["proposal"],
+                "periods": {n: to_units(p) for n, p in r["periods"].items()},
+                "closed": r["closed"],
+                "control_periods": {n: to_units(p) for n, p in r["control_periods"].items()},
+                "method": r.get("method"),
+                "overshoot_pct": r.get("overshoot_pct", {}),
+                **({"search": r["assignment"]} if r.get("assignment") else {}),
+            }
+        )
+        if r.get("energy"):
+            energy.append({"t": t, "proposal": r["proposal"], **r["energy"]})
+    return {
+        "proposals": [
+            {
+                "t": to_units(p["t"]),
+                "id": p["id"],
+                "event": p["event"],
+                "source": p["source"],
+                "hops": {k: v["hops"] for k, v in p["paths"].items()},
+                "estimates": {k: v["estimates"] for k, v in p["paths"].items()},
+            }
+            for p in raw.get("proposals", [])
+        ],
+        "decisions": decisions,
+        "assignments": assignments,
+        "energy": energy,
+        "applied": [
+            {
+                "t": to_units(a["t"]),
+                "event": a["event"],
+                "proposal": a.get("proposal"),
+                "periods": {n: to_units(p) for n, p in a.get("periods", {}).items()},
+            }
+            for a in raw.get("applied", [])
+        ],
     }

@@ -23,7 +23,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from agents.wncsca.config import WncscaConfig
+from agents.wncsca.config import MODES, WncscaConfig
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
 from gateway.energy import EnergyConfig
@@ -42,6 +42,7 @@ __all__ = [
     "OperatorNodeConfig",
     "LoopConfig",
     "SetpointChange",
+    "ModeChange",
     "Disturbance",
     "Scenario",
     "load_scenario",
@@ -255,13 +256,27 @@ class Disturbance(BaseModel):
 
 
 class SetpointChange(BaseModel):
-    """A scheduled set-point change."""
+    """A scheduled set-point change, optionally announced ahead (to a coordination agent)."""
 
     model_config = _STRICT
 
     t: float = Field(ge=0)
     loop: str
     value: float
+    announce: float = Field(
+        default=0.0,
+        ge=0,
+        description="the operator requests the change this long before t (needs an agent)",
+    )
+
+
+class ModeChange(BaseModel):
+    """A scheduled operating-mode request to the coordination agent (``ops/mode``)."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0)
+    mode: str = Field(description="startup, setpoint_change, identification, steady_state, ...")
 
 
 class Scenario(BaseModel):
@@ -278,6 +293,9 @@ class Scenario(BaseModel):
     loops: dict[str, LoopConfig]
     setpoints: list[SetpointChange] = []
     disturbances: list[Disturbance] = []
+    modes: list[ModeChange] = Field(
+        default_factory=list, description="operating modes requested of the agent, in time"
+    )
 
     @field_validator("nodes")
     @classmethod
@@ -391,6 +409,20 @@ class Scenario(BaseModel):
                 )
             if change.t > self.end_time:
                 raise ValueError(f"setpoints[{i}].t: {change.t} is after end_time {self.end_time}")
+            if change.announce > change.t:
+                raise ValueError(
+                    f"setpoints[{i}].announce: {change.announce} is before the run starts "
+                    f"(t = {change.t})"
+                )
+            if change.announce and self.agent_node() is None:
+                raise ValueError(f"setpoints[{i}].announce: announcing needs an agent node")
+        if self.modes and (self.agent_node() is None or not operators):
+            raise ValueError("modes: mode requests need an agent node and an operator node")
+        for i, change in enumerate(self.modes):
+            if change.mode not in MODES:
+                raise ValueError(f"modes[{i}].mode: unknown mode {change.mode!r} (modes: {MODES})")
+            if change.t > self.end_time:
+                raise ValueError(f"modes[{i}].t: {change.t} is after end_time {self.end_time}")
         self._check_feedforward()
         return self
 
@@ -434,6 +466,18 @@ class Scenario(BaseModel):
                     raise ValueError(f"{where}: feedforward of loop {lname!r}: {err}") from err
 
     # -- derived views used by nodes and engines --------------------------------------------------
+    def agent_node(self) -> str | None:
+        """The coordination agent's node name, or ``None``."""
+        return next((n for n, node in sorted(self.nodes.items()) if node.kind == "agent"), None)
+
+    def setpoint_key(self, loop: str) -> str:
+        """Where controllers read loop ``loop``'s set points: from operations
+        (``ops/setpoint/<loop>``), or from the coordination agent (``loop/<loop>/sp``) that
+        governs the loops, restoring control rates before it passes a change on."""
+        if self.agent_node() is None:
+            return keys.setpoint(loop)
+        return keys.loop_setpoint(loop)
+
     def loops_of_plant(self, plant: str) -> dict[str, LoopConfig]:
         """The loops measuring or moving plant ``plant``, by name (sorted)."""
         return {n: lp for n, lp in sorted(self.loops.items()) if lp.plant == plant}

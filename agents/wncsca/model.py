@@ -144,21 +144,35 @@ class LoopModel:
         self._memo[key] = result
         return result
 
+    def scenario_at(
+        self,
+        periods: Mapping[str, float] | None = None,
+        delays: Mapping[str, float] | None = None,
+        phase: tuple[int, int] | None = None,
+    ) -> Any:
+        """The model as a :class:`~runtime.scenario.Scenario`: wired loops with these periods
+        (default benchmark) and delays (default 0); with ``phase=(k, n)`` every test step is
+        moved to ``k/n`` of its loop's period after a sampling instant."""
+        periods = periods or {}
+        delays = delays or {}
+        data = json.loads(json.dumps(self._base))
+        for name, lp in data["loops"].items():
+            lp["tau_s"] = float(periods.get(name, self.benchmark[name]))
+            lp["tau_d"] = float(delays.get(name, 0.0))
+        if phase is not None:
+            k, n = phase
+            # samples at 0, P, 2P, ...: phase 0 is a step at a sampling instant
+            for step in data["setpoints"]:
+                p = to_ticks(data["loops"][step["loop"]]["tau_s"])
+                t = to_ticks(step["t"])
+                step["t"] = to_units((t // p) * p + (k * p) // n)
+        return self._scenario_type.model_validate(data)
+
     def _simulate(
         self, periods: dict[str, float], delays: dict[str, float], k: int, n: int
     ) -> dict[str, float]:
-        data = json.loads(json.dumps(self._base))
-        for name, lp in data["loops"].items():
-            lp["tau_s"] = periods[name]
-            lp["tau_d"] = delays[name]
-        if self.config.phase == "worst":
-            # each step lands k/n of its loop's period after a sampling instant (samples at
-            # 0, P, 2P, ...): phase 0 is a step at a sampling instant
-            for step in data["setpoints"]:
-                p = to_ticks(periods[step["loop"]])
-                t = to_ticks(step["t"])
-                step["t"] = to_units((t // p) * p + (k * p) // n)
-        scenario = self._scenario_type.model_validate(data)
+        phase = (k, n) if self.config.phase == "worst" else None
+        scenario = self.scenario_at(periods, delays, phase)
         self.simulations += 1
         rec = simulate(scenario)
         diverged = {

@@ -1,0 +1,264 @@
+"""The coordination agent's state machine, free of bus code (seed 000, section II and III.E;
+DESIGN section 6): judge proposals, negotiate control periods, follow operating modes.
+
+:class:`Coordinator` is what ``agents/wncsca/node.py`` calls for each message; every method
+returns what is to be published. Modes:
+
+* ``startup``, ``setpoint_change``: every loop closed at its negotiated control period (the
+  benchmark period until a configuration has been accepted);
+* ``identification``: closed, at the mode's configured periods (others at their control period);
+* ``steady_state``: loops open (controller output held), sensors at the monitoring periods;
+* ``fault_detection``: open, at the fault-detection periods (between monitoring and control).
+
+A set-point request first restores the control periods and closes the loops (mode
+``setpoint_change``), then the change is passed on, at its announced time.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from agents.wncsca.assignment import Assignment
+from agents.wncsca.bounds import DelayBound, delay_bounds
+from agents.wncsca.config import MODES, WncscaConfig
+from agents.wncsca.decision import Decision, decide
+from agents.wncsca.model import LoopModel
+from agents.wncsca.paper import successive_approximation
+
+__all__ = ["Coordinator", "Negotiation", "assign"]
+
+_OPEN_MODES = ("steady_state", "fault_detection")
+
+
+def assign(
+    model: LoopModel,
+    delays: Mapping[str, float],
+    weights: Mapping[str, float] | None = None,
+) -> Assignment:
+    """Control periods under ``delays`` by the configured method (the fast method falls back to
+    the paper's for laws it cannot linearise, and says so)."""
+    cfg = model.config
+    if cfg.method == "fast":
+        from agents.wncsca.fast import fast_periods
+
+        try:
+            return fast_periods(model, delays, objective=cfg.objective, weights=weights)
+        except ValueError as err:
+            result = successive_approximation(model, delays)
+            result.reason = f"fast method not applicable ({err}); paper method used"
+            return result
+    return successive_approximation(model, delays)
+
+
+@dataclass
+class Negotiation:
+    """What the agent decided about one proposal: the verdict and, if accepted, the periods."""
+
+    decision: Decision
+    network: str
+    assignment: Assignment | None = None
+    energy: dict[str, Any] | None = None
+
+
+class Coordinator:
+    """The WNCSCA for one scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The validated scenario; ``config`` defaults to its agent node's configuration.
+    """
+
+    def __init__(self, scenario: Any, config: WncscaConfig | None = None) -> None:
+        name = scenario.agent_node()
+        self.config = config or (scenario.nodes[name] if name else WncscaConfig())
+        self.scenario = scenario
+        self.model = LoopModel(scenario, self.config)
+        self.loops = self.model.loops
+        self.benchmark = dict(self.model.benchmark)
+        self.control_periods = dict(self.benchmark)
+        self.predicted: dict[str, float] = {}
+        self.method: str | None = None
+        self.mode = "startup"
+        self.accepted: dict[str, int] = {}  # network -> last accepted proposal id
+        self.proposal: int | None = None  # the last accepted proposal (any network)
+        self.carried = {
+            n: [lp for lp, cfg in scenario.loops.items() if cfg.network == n]
+            for n, node in scenario.nodes.items()
+            if node.kind in ("network", "gateway")
+        }
+        # wired loops: constant delays from the scenario; WSN loops: from accepted proposals
+        self.delays: dict[str, float] = {
+            lp: cfg.tau_d + cfg.tau_a
+            for lp, cfg in scenario.loops.items()
+            if scenario.nodes[cfg.network].kind == "network"
+        }
+        self._bounds: dict[str, DelayBound] | None = None
+
+    @property
+    def bounds(self) -> dict[str, DelayBound]:
+        """Each loop's largest tolerable delay at the benchmark periods (computed once)."""
+        if self._bounds is None:
+            self._bounds = delay_bounds(self.model)
+        return self._bounds
+
+    # -- proposals -------------------------------------------------------------------------
+    def on_proposal(self, network: str, body: Any) -> Negotiation:
+        """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``."""
+        pid = body.get("id") if isinstance(body, Mapping) else None
+        valid_id = isinstance(pid, int) and not isinstance(pid, bool) and pid >= 0
+        if network not in self.carried or not self.scenario.nodes[network].kind == "gateway":
+            return self._refused(network, pid if valid_id else None, f"{network!r} is no gateway")
+        if not isinstance(body, Mapping) or not valid_id:
+            return self._refused(network, None, "id: missing or not an integer >= 0")
+        others = {n: d for n, d in self.delays.items() if n not in self.carried[network]}
+        missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
+        for n in missing:  # a loop of another gateway with no accepted configuration yet
+            others[n] = 0.0
+        decision = decide(pid, body.get("paths"), self.bounds, self.config.estimate, wired=others)
+        if decision.verdict == "refuse":
+            return Negotiation(decision, network)
+        if decision.verdict == "reject":
+            return Negotiation(decision, network)
+        self.delays.update({n: decision.delays[n] for n in self.carried[network]})
+        self.accepted[network] = pid
+        self.proposal = pid
+        weights = _weights(body.get("paths"), self.loops)
+        result = assign(self.model, self.delays, weights)
+        if result.feasible:
+            self.control_periods = dict(result.periods)
+        self.predicted = dict(result.overshoot_pct)
+        self.method = result.method
+        energy = self.energy(network, body.get("paths"))
+        return Negotiation(decision, network, result, energy)
+
+    def on_no_alternative(self, network: str, proposal: int | None) -> Decision:
+        """The gateway has no alternative to a rejected proposal: keep what was accepted."""
+        last = self.accepted.get(network)
+        reason = (
+            f"{network}: no alternative to rejected proposal #{proposal}; keeping the last "
+            + (
+                f"accepted configuration (#{last}) and its periods"
+                if last is not None
+                else "periods (no configuration accepted yet): benchmark periods"
+            )
+        )
+        return Decision(proposal, "keep", (reason,))
+
+    def _refused(self, network: str, pid: int | None, reason: str) -> Negotiation:
+        return Negotiation(Decision(pid, "refuse", (f"proposal refused: {reason}",)), network)
+
+    # -- modes and set points --------------------------------------------------------------
+    def on_mode(self, body: Any) -> Decision:
+        """Change the operating mode (raw ``ops/mode`` body); refused if unknown."""
+        mode = body.get("mode") if isinstance(body, Mapping) else None
+        if mode not in MODES:
+            return Decision(
+                None, "refuse", (f"mode refused: unknown mode {mode!r} (modes: {MODES})",)
+            )
+        previous, self.mode = self.mode, mode
+        return Decision(None, "accept", (f"mode {previous} -> {mode}",))
+
+    def on_setpoint(self, loop: str, body: Any, now: int) -> tuple[Decision, float | None, int]:
+        """A set-point request (raw ``ops/setpoint/<loop>`` body) at ``now`` (ticks): returns the
+        verdict, the value to pass on (``None`` if refused) and when (ticks). Accepting it puts
+        the loops back under control (mode ``setpoint_change``) before the change applies."""
+        if not isinstance(body, Mapping):
+            return Decision(None, "refuse", ("set point refused: not a mapping",)), None, now
+        value, t_apply = body.get("value"), body.get("t_apply")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            return (
+                Decision(
+                    None,
+                    "refuse",
+                    (f"set point refused: {loop}.value {value!r} is not a finite number",),
+                ),
+                None,
+                now,
+            )
+        if t_apply is not None and (
+            isinstance(t_apply, bool) or not isinstance(t_apply, int) or t_apply < 0
+        ):
+            return (
+                Decision(
+                    None,
+                    "refuse",
+                    (f"set point refused: {loop}.t_apply {t_apply!r} is not a time in ticks",),
+                ),
+                None,
+                now,
+            )
+        when = now if t_apply is None else max(int(t_apply), now)
+        previous, self.mode = self.mode, "setpoint_change"
+        note = f"{loop} -> {value:g} at t={when / 1e6:g}"
+        if previous != "setpoint_change":
+            note += f"; control periods restored and loops closed first (was {previous})"
+        return Decision(None, "accept", (note,)), float(value), when
+
+    def rates(self) -> dict[str, Any]:
+        """Periods (time units) and closed flags for the current mode."""
+        modes = self.config.modes
+        periods = dict(self.control_periods)
+        closed = {n: True for n in self.loops}
+        if self.mode == "identification":
+            periods.update(modes.identification)
+        elif self.mode in _OPEN_MODES:
+            periods.update(
+                modes.monitoring if self.mode == "steady_state" else modes.fault_detection
+            )
+            closed = {n: False for n in self.loops}
+        return {"mode": self.mode, "periods": periods, "closed": closed}
+
+    # -- energy ----------------------------------------------------------------------------
+    def energy(self, network: str, paths: Any) -> dict[str, Any] | None:
+        """Projected network lifetime (the first battery node to run out) under the control
+        periods against the benchmark periods, over the proposal's routes."""
+        from gateway.energy import projected_lifetime
+        from gateway.paths import Route
+        from gateway.topology import Topology
+
+        cfg = self.scenario.nodes[network]
+        topology = Topology(cfg.topology)
+        routes = {}
+        try:
+            for path, entry in paths.items():
+                nodes = entry.get("route") or []
+                if len(nodes) >= 2:
+                    routes[path] = Route(
+                        tuple(topology.hop(a, b) for a, b in itertools.pairwise(nodes))
+                    )
+        except (ValueError, AttributeError):
+            return None  # a route over links the scenario does not know (e.g. an added relay)
+
+        def lifetime(periods: Mapping[str, float]) -> float:
+            per = {f"{n}.sensor": periods[n] for n in self.carried[network]}
+            nodes = projected_lifetime(topology, routes, per, cfg.energy)
+            return min(e.lifetime_s for e in nodes.values()) / 3600.0
+
+        assigned, bench = lifetime(self.control_periods), lifetime(self.benchmark)
+        finite = math.isfinite(assigned) and math.isfinite(bench) and bench > 0
+        return {
+            "lifetime_h_assigned": assigned if math.isfinite(assigned) else None,
+            "lifetime_h_benchmark": bench if math.isfinite(bench) else None,
+            "ratio": assigned / bench if finite else None,
+        }
+
+
+def _weights(paths: Any, loops: tuple[str, ...]) -> dict[str, float]:
+    """Energy weight of one sample of each loop: the hops of its paths (at least 1)."""
+    out = {n: 1.0 for n in loops}
+    if isinstance(paths, Mapping):
+        for path, entry in paths.items():
+            loop = str(path).rpartition(".")[0]
+            hops = entry.get("hops") if isinstance(entry, Mapping) else None
+            if loop in out and isinstance(hops, int) and hops > 0:
+                out[loop] = float(hops) if out[loop] == 1.0 else out[loop] + hops
+    return out

@@ -1,0 +1,150 @@
+"""The WNCSCA node: the coordination agent on the bus (seed 000, section II and III.E).
+
+It listens to ``net/proposal`` (every gateway's configurations), ``net/applied`` (a gateway
+with no alternative left), ``ops/mode`` and ``ops/setpoint/<loop>``; it answers on
+``wncsca/decision`` (accept / reject with reasons and bounds / refuse a malformed request /
+keep the last accepted configuration) and assigns periods and loop states on ``wncsca/rates``,
+which the network nodes apply and the controllers follow; accepted set points go to the
+controllers on ``loop/<l>/sp`` at their time. Requests are read as raw mappings and validated by
+the core (:class:`~agents.wncsca.coordinator.Coordinator`), so a malformed one is refused with a
+reason on the bus, and nothing changes. The wall-clock time of each decision goes on
+``wncsca/timing`` (a measurement: left out of the history digest).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from agents.wncsca.coordinator import Coordinator, Negotiation
+from bus_schemas import Decision, Rates, Setpoint, Timing, keys
+from bus_schemas.bodies import NetApplied
+from bus_schemas.envelope import RawEnvelope
+from runtime.node import Node, NodeContext
+from runtime.time import to_ticks
+
+__all__ = ["WncscaNode"]
+
+
+class WncscaNode(Node):
+    def __init__(self, ctx: NodeContext) -> None:
+        super().__init__(ctx)
+        self.core = Coordinator(self.scenario)
+        t0 = time.perf_counter()
+        bounds = self.core.bounds  # once, before the run: III.E step 2's tau_d-max
+        self.log.info(
+            "delay bounds at the benchmark periods: %s (%.2f s)",
+            {n: round(b.tau_d_max, 4) for n, b in bounds.items()},
+            time.perf_counter() - t0,
+        )
+        self.subscribe(keys.net_proposal(), None, self._on_proposal)
+        self.subscribe(keys.net_applied(), NetApplied, self._on_applied)
+        self.subscribe(keys.ops_mode(), None, self._on_mode)
+        for loop in self.core.loops:
+            self.subscribe(keys.setpoint(loop), None, self._on_setpoint(loop))
+        self.at(0, self._publish_rates)
+
+    def _on_proposal(self, env: RawEnvelope, body: Any) -> None:
+        t0 = time.perf_counter()
+        neg = self.core.on_proposal(env.src, body)
+        paths = body.get("paths") if isinstance(body, dict) else None
+        self._publish_decision(neg, sorted(paths) if isinstance(paths, dict) else [])
+        if neg.decision.verdict == "accept":
+            self._publish_rates(neg)
+        self.publish(
+            keys.wncsca_timing(),
+            Timing(proposal=neg.decision.proposal, decision_s=time.perf_counter() - t0),
+        )
+
+    def _on_applied(self, env: RawEnvelope, msg: NetApplied) -> None:
+        if msg.event == "no_alternative":
+            d = self.core.on_no_alternative(env.src, msg.proposal)
+            self.log.warning("%s", d.reasons[0])
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(
+                    subject="proposal",
+                    network=env.src,
+                    proposal=msg.proposal,
+                    verdict="keep",
+                    reasons=d.reasons,
+                ),
+            )
+
+    def _on_mode(self, env: RawEnvelope, body: Any) -> None:
+        d = self.core.on_mode(body)
+        self.publish(
+            keys.wncsca_decision(), Decision(subject="mode", verdict=d.verdict, reasons=d.reasons)
+        )
+        if d.verdict == "accept":
+            self._publish_rates()
+
+    def _on_setpoint(self, loop: str) -> Any:
+        def handle(env: RawEnvelope, body: Any) -> None:
+            mode = self.core.mode
+            d, value, when = self.core.on_setpoint(loop, body, self.now)
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(subject="setpoint", verdict=d.verdict, reasons=d.reasons),
+            )
+            if value is None:
+                return
+            if self.core.mode != mode:
+                self._publish_rates()
+            sp = Setpoint(value=value)
+            if when == self.now:
+                self.publish(keys.loop_setpoint(loop), sp)
+            else:
+                self.at(when, lambda: self.publish(keys.loop_setpoint(loop), sp))
+
+        return handle
+
+    def _publish_decision(self, neg: Negotiation, path_names: list[str]) -> None:
+        """The verdict on a proposal, with the offending loops' paths (for the alternative)."""
+        d = neg.decision
+        paths = tuple(p for p in path_names if str(p).rpartition(".")[0] in d.offending)
+        self.log.info(
+            "proposal #%s from %s: %s (%s)",
+            d.proposal,
+            neg.network,
+            d.verdict,
+            "; ".join(d.reasons),
+        )
+        self.publish(
+            keys.wncsca_decision(),
+            Decision(
+                subject="proposal",
+                network=neg.network,
+                proposal=d.proposal,
+                verdict=d.verdict,
+                reasons=d.reasons,
+                delays=d.delays,
+                bounds=d.bounds,
+                offending=d.offending,
+                paths=paths,
+            ),
+        )
+
+    def _publish_rates(self, neg: Negotiation | None = None) -> None:
+        r = self.core.rates()
+        assignment = neg.assignment.as_dict() if neg is not None and neg.assignment else None
+        if assignment is not None:
+            assignment.pop("decision_time_s", None)  # wall clock: on wncsca/timing instead
+        self.publish(
+            keys.wncsca_rates(),
+            Rates(
+                mode=r["mode"],
+                periods={n: to_ticks(p) for n, p in r["periods"].items()},
+                closed=r["closed"],
+                control_periods={n: to_ticks(p) for n, p in self.core.control_periods.items()},
+                proposal=self.core.proposal,
+                method=self.core.method,
+                overshoot_pct={n: _finite(v) for n, v in self.core.predicted.items()},
+                assignment=assignment,
+                energy=neg.energy if neg is not None else None,
+            ),
+        )
+
+
+def _finite(v: float) -> float | None:
+    return v if v == v and abs(v) != float("inf") else None
