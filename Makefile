@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/wncs run scenarios/jcstr_benchmark.yaml --out runs/jcstr_benchmark
+	$(BIN)/wncs run scenarios/jcstr_wncs.yaml --out runs/jcstr_wncs
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

@@ -3,6 +3,7 @@
 ``wncs run SCENARIO --out DIR``        run a scenario (engines: processes, threads, direct)
 ``wncs node SCENARIO NAME --connect EP --run-id ID``   run one node of the graph (or ``clock``)
 ``wncs report DIR``                    redraw a run's plots and print its figures
+``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
 
 Exit codes: 0 success, 2 bad input (scenario, arguments), 3 the run was stopped by a fault,
 1 any other failure.
@@ -75,6 +76,18 @@ def build_parser() -> argparse.ArgumentParser:
     report = sub.add_parser("report", help="redraw a run's plots and print its figures")
     report.add_argument("dir")
 
+    analyze = sub.add_parser(
+        "analyze", help="the coordination agent's decision and periods, without the bus"
+    )
+    analyze.add_argument("scenario")
+    analyze.add_argument(
+        "--delays",
+        default=None,
+        help="control-path delays, loop=value,... (default: from the scenario's networks)",
+    )
+    analyze.add_argument("--method", choices=("paper", "fast"), default=None)
+    analyze.add_argument("--out", required=True, help="output directory")
+
     inject = sub.add_parser(
         "inject",
         help="inject a network reconfiguration into a running run",
@@ -130,8 +143,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"{s['end_time']:g} {s['time_unit']} in {s['wall_s']:.2f} s wall time"
         )
         print(_table(s))
+        if "wncsca" in s:
+            from agents.wncsca.timeline import format_timeline
+
+            print("\ncoordination agent (WNCSCA) timeline:")
+            print(format_timeline(s))
         print(
-            f"artefacts in {Path(args.out).resolve()}: summary.json, "
+            f"\nartefacts in {Path(args.out).resolve()}: summary.json, "
             + ", ".join(f"{n}.png" for n in s["loops"])
         )
     return 0
@@ -192,7 +210,31 @@ def _cmd_report(args: argparse.Namespace) -> int:
     summary = write_summary(rec, out)
     paths = write_plots(rec, out)
     print(_table(summary))
+    if "wncsca" in summary:
+        from agents.wncsca.timeline import format_timeline
+
+        print(format_timeline(summary))
     print("plots: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from agents.wncsca.analysis import analyze, parse_delays
+    from agents.wncsca.timeline import format_timeline
+    from runtime.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    try:
+        delays = None if args.delays is None else parse_delays(args.delays, scenario.loops)
+    except ValueError as err:
+        raise ConfigError(str(err)) from err
+    out = Path(args.out)
+    summary = analyze(scenario, delays=delays, method=args.method, out=out)
+    w = summary["wncsca"]
+    for name, b in w["bounds"].items():
+        print(f"{name}: largest tolerable delay at the benchmark periods {b['tau_d_max']:.4g}")
+    print(format_timeline(summary))
+    print(f"artefacts in {out}: summary.json" + (", search.png" if w["assignments"] else ""))
     return 0
 
 
@@ -234,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
             "node": _cmd_node,
             "report": _cmd_report,
             "inject": _cmd_inject,
+            "analyze": _cmd_analyze,
         }
         return commands[args.command](args)
     except ConfigError as err:

@@ -1,0 +1,149 @@
+"""The agent's analysis without the bus (``wncs analyze``): judge a scenario's control-path delays
+against the loops' bounds (seed 000, III.E step 2) and negotiate the periods (step 3), writing the
+same ``wncsca`` section a run's ``summary.json`` has, and the Fig. 10-style plot of the search.
+
+Delays come from ``--delays loop=value,...`` or, by default, from the scenario itself: wired loops
+their ``tau_d + tau_a``, loops over a gateway the estimate the agent is configured to use from the
+gateway's initial configuration.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from agents.wncsca.config import WncscaConfig
+from agents.wncsca.coordinator import assign
+from agents.wncsca.decision import decide
+from agents.wncsca.model import LoopModel
+
+__all__ = ["analyze", "parse_delays"]
+
+
+def parse_delays(text: str, loops: Any) -> dict[str, float]:
+    """``"level=0.17,temperature=0.1"`` -> ``{"level": 0.17, "temperature": 0.1}``.
+
+    Raises
+    ------
+    ValueError
+        Naming the item that is malformed, names an unknown loop, or is negative.
+    """
+    out: dict[str, float] = {}
+    for item in filter(None, (p.strip() for p in text.split(","))):
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--delays: {item!r} is not loop=value")
+        if name not in loops:
+            raise ValueError(f"--delays: unknown loop {name!r} (loops: {sorted(loops)})")
+        try:
+            delay = float(value)
+        except ValueError:
+            raise ValueError(f"--delays: {name}: not a number: {value!r}") from None
+        if not delay >= 0:
+            raise ValueError(f"--delays: {name}: a delay must be >= 0, got {value}")
+        out[name] = delay
+    return out
+
+
+def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
+    """The paths as the scenario's networks would first propose them."""
+    from gateway.carrier import PathCarrier
+
+    paths: dict[str, dict[str, Any]] = {}
+    for name, node in sorted(scenario.nodes.items()):
+        if node.kind == "gateway":
+            paths.update(PathCarrier(scenario, name).configuration(0))
+        elif node.kind == "network":
+            for loop, lp in scenario.loops.items():
+                if lp.network == name:
+                    d = lp.tau_d + lp.tau_a
+                    est = {"timestamps": d, "ping": d, "hops": d}
+                    paths[f"{loop}.sensor"] = {"hops": 0, "route": [], "estimates": est}
+    return paths
+
+
+def analyze(
+    scenario: Any,
+    *,
+    delays: Mapping[str, float] | None = None,
+    method: str | None = None,
+    out: Path | None = None,
+) -> dict[str, Any]:
+    """Decision and periods for ``scenario`` (its agent's configuration, or the defaults).
+
+    Returns the ``summary.json`` contents (with a ``wncsca`` section) and, with ``out``, writes
+    ``summary.json`` and ``search.png`` there.
+    """
+    name = scenario.agent_node()
+    config = scenario.nodes[name] if name else WncscaConfig()
+    if method is not None:
+        config = config.model_copy(update={"method": method})
+    t0 = time.perf_counter()
+    model = LoopModel(scenario, config)
+    from agents.wncsca.bounds import delay_bounds
+
+    bounds = delay_bounds(model)
+    t_bounds = time.perf_counter() - t0
+    if delays is None:
+        paths = _scenario_paths(scenario)
+    else:
+        missing = [n for n in model.loops if n not in delays]
+        if missing:
+            raise ValueError(f"--delays: no delay for loop(s) {missing}")
+        paths = {
+            f"{n}.sensor": {"hops": 0, "route": [], "estimates": {config.estimate: d}}
+            for n, d in delays.items()
+        }
+    t1 = time.perf_counter()
+    decision = decide(None, paths, bounds, config.estimate)
+    entry = {"t": 0.0, "subject": "proposal", **decision.as_dict()}
+    assignments = []
+    if decision.verdict == "accept":
+        result = assign(model, decision.delays, _hops(paths))
+        search = result.as_dict()
+        assignments.append(
+            {
+                "t": 0.0,
+                "mode": "startup",
+                "periods": dict(result.periods),
+                "control_periods": dict(result.periods),
+                "closed": {n: True for n in model.loops},
+                "method": result.method,
+                "overshoot_pct": search["overshoot_pct"],
+                "search": search,
+            }
+        )
+        if out is not None:
+            from agents.wncsca.plots import fig10
+
+            fig10(result, Path(out) / "search.png", limit=config.overshoot_limit)
+    entry["decision_time_s"] = time.perf_counter() - t1
+    summary = {
+        "scenario": scenario.name,
+        "analysis": True,
+        "wncsca": {
+            "bounds": {
+                n: {"tau_d_max": b.tau_d_max, "overshoot_pct": b.overshoot_pct}
+                for n, b in bounds.items()
+            },
+            "bounds_time_s": t_bounds,
+            "decisions": [entry],
+            "assignments": assignments,
+            "simulations": model.simulations,
+        },
+    }
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        (Path(out) / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary
+
+
+def _hops(paths: Mapping[str, Any]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for path, entry in paths.items():
+        loop = path.rpartition(".")[0]
+        out[loop] = out.get(loop, 0.0) + max(1, int(entry.get("hops", 1)))
+    return out

@@ -1,0 +1,88 @@
+"""A readable timeline of what the coordination agent saw and decided, from ``summary.json``'s
+``wncsca`` section: proposals (hops, delay estimates), verdicts with reasons, assigned periods and
+loop states, the projected lifetime gain, and the measured overshoot of every set-point step."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["format_timeline"]
+
+
+def _periods(periods: dict[str, float]) -> str:
+    return ", ".join(f"{n} {p:.4g}" for n, p in periods.items())
+
+
+def format_timeline(summary: dict[str, Any]) -> str:
+    """The agent's timeline, one event per line, in time order."""
+    w = summary.get("wncsca")
+    if not w:
+        return ""
+    unit = summary.get("time_unit", "pu")
+    events: list[tuple[float, int, str]] = []
+    for p in w.get("proposals", []):
+        est = ", ".join(
+            f"{path} {e.get('hops') if e.get('hops') is not None else e.get('ping')}"
+            for path, e in p["estimates"].items()
+        )
+        hops = ", ".join(f"{k} {v}" for k, v in p["hops"].items())
+        events.append(
+            (
+                p["t"],
+                0,
+                f"proposal #{p['id']} ({p['source']} {p['event']}): hops {hops}; delays {est}",
+            )
+        )
+    for d in w.get("decisions", []):
+        what = f"proposal #{d['proposal']}" if d["subject"] == "proposal" else d["subject"]
+        took = f" [{d['decision_time_s']:.2f} s]" if d.get("decision_time_s") is not None else ""
+        events.append(
+            (d["t"], 1, f"{what}: {d['verdict'].upper()}{took} - " + "; ".join(d["reasons"]))
+        )
+    previous = None
+    for a in w.get("assignments", []):
+        state = (a["mode"], tuple(a["periods"].items()), tuple(a["closed"].items()))
+        if state == previous:
+            continue
+        previous = state
+        loops = (
+            "closed"
+            if all(a["closed"].values())
+            else ("open (outputs held)" if not any(a["closed"].values()) else str(a["closed"]))
+        )
+        line = f"rates: mode {a['mode']}, periods {_periods(a['periods'])} {unit}, loops {loops}"
+        if a.get("search"):
+            s = a["search"]
+            os_ = ", ".join(
+                f"{n} {v:.1f} %" for n, v in s["overshoot_pct"].items() if v is not None
+            )
+            line += (
+                f"; negotiated by the {s['method']} method in {s['alternations']} alternation(s), "
+                f"{len(s['trace'])} trials, predicted overshoot {os_}"
+            )
+        events.append((a["t"], 2, line))
+    for e in w.get("energy", []):
+        if e.get("ratio") is not None:
+            events.append(
+                (
+                    e["t"],
+                    3,
+                    f"projected network lifetime {e['lifetime_h_assigned']:.0f} h under "
+                    f"the negotiated periods vs {e['lifetime_h_benchmark']:.0f} h at the benchmark "
+                    f"periods (x{e['ratio']:.2f})",
+                )
+            )
+    for name, lp in summary.get("loops", {}).items():
+        for s in lp.get("steps", []):
+            events.append(
+                (
+                    s["t"],
+                    4,
+                    f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
+                    f"{s['overshoot_pct']:.1f} %",
+                )
+            )
+    lines = [
+        f"{t:8.3f} {unit}  {text}" for t, _, text in sorted(events, key=lambda e: (e[0], e[1]))
+    ]
+    return "\n".join(lines)
