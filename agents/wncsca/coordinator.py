@@ -235,7 +235,7 @@ class Coordinator:
                     routes[path] = Route(
                         tuple(topology.hop(a, b) for a, b in itertools.pairwise(nodes))
                     )
-        except (ValueError, AttributeError):
+        except (ValueError, AttributeError, TypeError):
             return None  # a route over links the scenario does not know (e.g. an added relay)
 
         def lifetime(periods: Mapping[str, float]) -> float:

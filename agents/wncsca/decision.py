@@ -59,17 +59,24 @@ def _estimate(path: str, entry: Any, preferred: str) -> tuple[float | None, str 
     hops = entry.get("hops")
     if isinstance(hops, bool) or not isinstance(hops, int):
         raise ProposalError(f"paths.{path}.hops: missing or not an integer ({hops!r})")
+    route = entry.get("route", [])
+    if not isinstance(route, list) or not all(isinstance(n, str) for n in route):
+        raise ProposalError(f"paths.{path}.route: not a list of node names ({route!r})")
     estimates = entry.get("estimates")
     if not isinstance(estimates, Mapping):
         raise ProposalError(f"paths.{path}.estimates: missing or not a mapping")
-    unknown = sorted(set(estimates) - set(ESTIMATES))
+    unknown = [e for e in estimates if e not in ESTIMATES]
     if unknown:
-        raise ProposalError(f"paths.{path}.estimates: unknown estimate(s) {unknown}")
+        raise ProposalError(f"paths.{path}.estimates: unknown estimate(s) {unknown!r}")
     for name, value in estimates.items():
         if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ProposalError(f"paths.{path}.estimates.{name}: not a number ({value!r})")
+        try:
+            value = float(value)
+        except OverflowError:
+            raise ProposalError(f"paths.{path}.estimates.{name}: out of range") from None
         if not math.isfinite(value) or value < 0:
             raise ProposalError(f"paths.{path}.estimates.{name}: a delay must be >= 0, got {value}")
     if hops < 0:
@@ -97,6 +104,8 @@ def control_path_delays(
         raise ProposalError("paths: missing or not a mapping")
     delays: dict[str, float | None] = {}
     used: dict[str, str] = {}
+    if not all(isinstance(p, str) for p in paths):
+        raise ProposalError(f"paths: every key must be a path name, got {list(paths)!r}")
     for path in sorted(paths):
         loop, _, direction = str(path).rpartition(".")
         if loop not in loops:
