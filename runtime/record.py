@@ -230,17 +230,7 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
         if r.get("energy"):
             energy.append({"t": t, "proposal": r["proposal"], **r["energy"]})
     return {
-        "proposals": [
-            {
-                "t": to_units(p["t"]),
-                "id": p["id"],
-                "event": p["event"],
-                "source": p["source"],
-                "hops": {k: v["hops"] for k, v in p["paths"].items()},
-                "estimates": {k: v["estimates"] for k, v in p["paths"].items()},
-            }
-            for p in raw.get("proposals", [])
-        ],
+        "proposals": [_proposal(p) for p in raw.get("proposals", [])],
         "decisions": decisions,
         "assignments": assignments,
         "energy": energy,
@@ -253,4 +243,19 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
             }
             for a in raw.get("applied", [])
         ],
+    }
+
+
+def _proposal(p: dict[str, Any]) -> dict[str, Any]:
+    """One proposal as the summary lists it; a malformed one (the agent refused it) is listed as
+    it came, with what could be read."""
+    paths = p.get("paths") if isinstance(p.get("paths"), dict) else {}
+    entries = {k: v for k, v in paths.items() if isinstance(v, dict)}
+    return {
+        "t": to_units(p["t"]),
+        "id": p.get("id"),
+        "event": p.get("event"),
+        "source": p.get("source"),
+        "hops": {k: v.get("hops") for k, v in entries.items()},
+        "estimates": {k: v.get("estimates") for k, v in entries.items()},
     }

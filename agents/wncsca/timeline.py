@@ -13,6 +13,13 @@ def _periods(periods: dict[str, float]) -> str:
     return ", ".join(f"{n} {p:.4g}" for n, p in periods.items())
 
 
+def _estimate(e: Any) -> Any:
+    """The hops estimate of a path (ping if there is none), as the gateway sent it."""
+    if not isinstance(e, dict):
+        return e
+    return e.get("hops") if e.get("hops") is not None else e.get("ping")
+
+
 def format_timeline(summary: dict[str, Any]) -> str:
     """The agent's timeline, one event per line, in time order."""
     w = summary.get("wncsca")
@@ -21,11 +28,8 @@ def format_timeline(summary: dict[str, Any]) -> str:
     unit = summary.get("time_unit", "pu")
     events: list[tuple[float, int, str]] = []
     for p in w.get("proposals", []):
-        est = ", ".join(
-            f"{path} {e.get('hops') if e.get('hops') is not None else e.get('ping')}"
-            for path, e in p["estimates"].items()
-        )
-        hops = ", ".join(f"{k} {v}" for k, v in p["hops"].items())
+        est = ", ".join(f"{path} {_estimate(e)}" for path, e in (p.get("estimates") or {}).items())
+        hops = ", ".join(f"{k} {v}" for k, v in (p.get("hops") or {}).items())
         events.append(
             (
                 p["t"],
