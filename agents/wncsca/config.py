@@ -26,8 +26,16 @@ _STRICT = ConfigDict(frozen=True, extra="forbid")
 ESTIMATES = ("timestamps", "ping", "hops")
 """The paper's three path-delay estimates (III.E step 1), as the gateway's proposals carry them."""
 
-MODES = ("startup", "setpoint_change", "identification", "steady_state", "fault_detection")
-"""Operating modes (seed 000, section II; DESIGN section 6)."""
+MODES = (
+    "startup",
+    "setpoint_change",
+    "identification",
+    "steady_state",
+    "fault_detection",
+    "regulation",
+)
+"""Operating modes (seed 000, section II; DESIGN section 6). ``regulation``: loops closed at the
+control periods after the monitoring raised and confirmed an alarm."""
 
 
 class TestStep(BaseModel):
@@ -136,12 +144,24 @@ class WncscaConfig(BaseModel):
         default=None, description="the set-point test; default: the scenario's own schedule"
     )
     modes: ModesConfig = Field(default_factory=ModesConfig)
+    alarm: dict[str, float] = Field(
+        default_factory=dict,
+        description="loop -> largest |y - r| tolerated while the loops are open, in the signal's "
+        "unit: beyond it steady state becomes fault detection (faster reports), and a "
+        "confirmed deviation closes the loops (regulation)",
+    )
+    confirm: int = Field(
+        default=2, ge=1, description="samples beyond the alarm that confirm a fault"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> WncscaConfig:
         for loop, period in self.ideal_period.items():
             if not period > 0:
                 raise ValueError(f"ideal_period.{loop}: a period must be > 0, got {period}")
+        for loop, band in self.alarm.items():
+            if not band > 0:
+                raise ValueError(f"alarm.{loop}: must be > 0, got {band}")
         if self.order is not None and len(set(self.order)) != len(self.order):
             raise ValueError(f"order: a loop is named twice in {self.order}")
         return self

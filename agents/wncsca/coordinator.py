@@ -8,7 +8,13 @@ returns what is to be published. Modes:
   benchmark period until a configuration has been accepted);
 * ``identification``: closed, at the mode's configured periods (others at their control period);
 * ``steady_state``: loops open (controller output held), sensors at the monitoring periods;
-* ``fault_detection``: open, at the fault-detection periods (between monitoring and control).
+* ``fault_detection``: open, at the fault-detection periods (between monitoring and control);
+* ``regulation``: closed at the control periods (a confirmed alarm).
+
+While the loops are open, a loop with an ``alarm`` band is watched: a delivered sample farther
+than the band from its set point turns steady state into fault detection (faster reports), and
+``confirm`` such samples in fault detection close the loops (regulation) until operations ask
+for another mode.
 
 A set-point request first restores the control periods and closes the loops (mode
 ``setpoint_change``), then the change is passed on, at its announced time.
@@ -98,6 +104,8 @@ class Coordinator:
             if scenario.nodes[cfg.network].kind == "network"
         }
         self._bounds: dict[str, DelayBound] | None = None
+        self.setpoints = {n: lp.setpoint for n, lp in scenario.loops.items()}
+        self._strikes = {n: 0 for n in self.loops}
 
     @property
     def bounds(self) -> dict[str, DelayBound]:
@@ -202,6 +210,32 @@ class Coordinator:
         if previous != "setpoint_change":
             note += f"; control periods restored and loops closed first (was {previous})"
         return Decision(None, "accept", (note,)), float(value), when
+
+    def on_sample(self, loop: str, y: float, t: int) -> Decision | None:
+        """A delivered sample of ``loop`` at ``t`` (ticks) while the loops may be open: raise
+        and confirm alarms (``None``: nothing to do)."""
+        band = self.config.alarm.get(loop)
+        if band is None or self.mode not in _OPEN_MODES:
+            self._strikes[loop] = 0
+            return None
+        deviation = abs(y - self.setpoints[loop])
+        if deviation <= band:
+            self._strikes[loop] = 0
+            return None
+        self._strikes[loop] += 1
+        what = f"{loop}: |y - r| = {deviation:.4g} > alarm {band:g} at t={t / 1e6:g}"
+        if self.mode == "steady_state":
+            self.mode = "fault_detection"
+            return Decision(None, "accept", (f"{what}: steady_state -> fault_detection",))
+        if self._strikes[loop] >= self.config.confirm:
+            self.mode = "regulation"
+            self._strikes = {n: 0 for n in self.loops}
+            return Decision(
+                None,
+                "accept",
+                (f"{what}, confirmed: fault_detection -> regulation (loops closed)",),
+            )
+        return None
 
     def rates(self) -> dict[str, Any]:
         """Periods (time units) and closed flags for the current mode."""

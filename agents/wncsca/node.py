@@ -17,7 +17,7 @@ import time
 from typing import Any
 
 from agents.wncsca.coordinator import Coordinator, Negotiation
-from bus_schemas import Decision, Rates, Setpoint, Timing, keys
+from bus_schemas import Decision, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
 from bus_schemas.envelope import RawEnvelope
 from runtime.node import Node, NodeContext
@@ -42,6 +42,8 @@ class WncscaNode(Node):
         self.subscribe(keys.ops_mode(), None, self._on_mode)
         for loop in self.core.loops:
             self.subscribe(keys.setpoint(loop), None, self._on_setpoint(loop))
+            if loop in self.core.config.alarm:
+                self.subscribe(keys.meas(loop), Sample, self._on_meas(loop))
         self.at(0, self._publish_rates)
 
     def _on_proposal(self, env: RawEnvelope, body: Any) -> None:
@@ -91,11 +93,28 @@ class WncscaNode(Node):
                 return
             if self.core.mode != mode:
                 self._publish_rates()
-            sp = Setpoint(value=value)
             if when == self.now:
-                self.publish(keys.loop_setpoint(loop), sp)
+                self._pass_on(loop, value)
             else:
-                self.at(when, lambda: self.publish(keys.loop_setpoint(loop), sp))
+                self.at(when, lambda: self._pass_on(loop, value))
+
+        return handle
+
+    def _pass_on(self, loop: str, value: float) -> None:
+        self.core.setpoints[loop] = value
+        self.publish(keys.loop_setpoint(loop), Setpoint(value=value))
+
+    def _on_meas(self, loop: str) -> Any:
+        def handle(env: RawEnvelope, sample: Sample) -> None:
+            d = self.core.on_sample(loop, sample.value, self.now)
+            if d is None:
+                return
+            self.log.warning("%s", d.reasons[0])
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(subject="mode", verdict=d.verdict, reasons=d.reasons),
+            )
+            self._publish_rates()
 
         return handle
 
