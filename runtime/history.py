@@ -102,7 +102,7 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
     sp_keys = {scenario.setpoint_key(name): name for name in scenario.loops}
     with connect(path) as conn:
         rows = conn.execute("SELECT t, key, body FROM messages ORDER BY id")
-        for t, key, body in rows:
+        for order, (t, key, body) in enumerate(rows):
             rec.published[key] = rec.published.get(key, 0) + 1
             parts = key.split("/")
             if key in sp_keys:
@@ -128,7 +128,7 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     rec.configurations.append(applied)
             elif key == keys.net_proposal() and scenario.agent_node() is not None:
                 rec.wncsca.setdefault("proposals", []).append(
-                    {"t": t, **codec.unpack_mapping(body)}
+                    {"t": t, "order": order, **codec.unpack_mapping(body)}
                 )
             elif key in (keys.wncsca_decision(), keys.wncsca_rates(), keys.wncsca_timing()):
                 name = {
@@ -136,7 +136,9 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     keys.wncsca_rates(): "rates",
                     keys.wncsca_timing(): "timing",
                 }[key]
-                rec.wncsca.setdefault(name, []).append({"t": t, **codec.unpack_mapping(body)})
+                rec.wncsca.setdefault(name, []).append(
+                    {"t": t, "order": order, **codec.unpack_mapping(body)}
+                )
             elif key == keys.net_stats():
                 rec.net_nodes.update(codec.unpack_mapping(body)["nodes"])  # the last one wins
             elif key == keys.net_lost():

@@ -201,7 +201,8 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
     verdict, reasons, delays, bounds), ``assignments`` (time, mode, period and closed state per
     loop, predicted overshoot, method, search trace when negotiated) and ``energy`` (projected
     network lifetime under the assigned periods against the benchmark periods, per negotiation).
-    Times in time units; periods in time units."""
+    Times in time units; periods in time units; ``order`` is the message's place in the history
+    (several happen at one instant, in microsteps)."""
     timing = {}
     for entry in raw.get("timing", []):
         timing.setdefault(entry["proposal"], entry["decision_s"])
@@ -217,6 +218,7 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
         assignments.append(
             {
                 "t": t,
+                "order": r.get("order"),
                 "mode": r["mode"],
                 "proposal": r["proposal"],
                 "periods": {n: to_units(p) for n, p in r["periods"].items()},
@@ -228,7 +230,9 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
             }
         )
         if r.get("energy"):
-            energy.append({"t": t, "proposal": r["proposal"], **r["energy"]})
+            energy.append(
+                {"t": t, "order": r.get("order"), "proposal": r["proposal"], **r["energy"]}
+            )
     return {
         "proposals": [_proposal(p) for p in raw.get("proposals", [])],
         "decisions": decisions,
@@ -253,6 +257,7 @@ def _proposal(p: dict[str, Any]) -> dict[str, Any]:
     entries = {k: v for k, v in paths.items() if isinstance(v, dict)}
     return {
         "t": to_units(p["t"]),
+        "order": p.get("order"),
         "id": p.get("id"),
         "event": p.get("event"),
         "source": p.get("source"),

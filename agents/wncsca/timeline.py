@@ -4,6 +4,7 @@ loop states, the projected lifetime gain, and the measured overshoot of every se
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 __all__ = ["format_timeline"]
@@ -17,7 +18,17 @@ def _estimate(e: Any) -> Any:
     """The hops estimate of a path (ping if there is none), as the gateway sent it."""
     if not isinstance(e, dict):
         return e
-    return e.get("hops") if e.get("hops") is not None else e.get("ping")
+    value = e.get("hops") if e.get("hops") is not None else e.get("ping")
+    return f"{value:.4g}" if isinstance(value, int | float) else value
+
+
+def _order(entry: dict[str, Any]) -> float:
+    order = entry.get("order")
+    return math.inf if order is None else float(order)
+
+
+def _cause(p: dict[str, Any]) -> str:
+    return str(p["source"]) if p["source"] == p["event"] else f"{p['source']}: {p['event']}"
 
 
 def format_timeline(summary: dict[str, Any]) -> str:
@@ -26,26 +37,35 @@ def format_timeline(summary: dict[str, Any]) -> str:
     if not w:
         return ""
     unit = summary.get("time_unit", "pu")
-    events: list[tuple[float, int, str]] = []
+    events: list[tuple[float, float, str]] = []
     for p in w.get("proposals", []):
         est = ", ".join(f"{path} {_estimate(e)}" for path, e in (p.get("estimates") or {}).items())
         hops = ", ".join(f"{k} {v}" for k, v in (p.get("hops") or {}).items())
         events.append(
             (
                 p["t"],
-                0,
-                f"proposal #{p['id']} ({p['source']} {p['event']}): hops {hops}; delays {est}",
+                _order(p),
+                f"proposal #{p['id']} ({_cause(p)}): hops {hops}; delays {est}",
             )
         )
     for d in w.get("decisions", []):
         what = f"proposal #{d['proposal']}" if d["subject"] == "proposal" else d["subject"]
         took = f" [{d['decision_time_s']:.2f} s]" if d.get("decision_time_s") is not None else ""
         events.append(
-            (d["t"], 1, f"{what}: {d['verdict'].upper()}{took} - " + "; ".join(d["reasons"]))
+            (
+                d["t"],
+                _order(d),
+                f"{what}: {d['verdict'].upper()}{took} - " + "; ".join(d["reasons"]),
+            )
         )
     previous = None
     for a in w.get("assignments", []):
-        state = (a["mode"], tuple(a["periods"].items()), tuple(a["closed"].items()))
+        state = (
+            a["mode"],
+            tuple(a["periods"].items()),
+            tuple(a["closed"].items()),
+            tuple(a["control_periods"].items()),
+        )
         if state == previous:
             continue
         previous = state
@@ -55,6 +75,8 @@ def format_timeline(summary: dict[str, Any]) -> str:
             else ("open (outputs held)" if not any(a["closed"].values()) else str(a["closed"]))
         )
         line = f"rates: mode {a['mode']}, periods {_periods(a['periods'])} {unit}, loops {loops}"
+        if a["control_periods"] != a["periods"]:
+            line += f" (control periods {_periods(a['control_periods'])} {unit})"
         if a.get("search"):
             s = a["search"]
             os_ = ", ".join(
@@ -64,13 +86,13 @@ def format_timeline(summary: dict[str, Any]) -> str:
                 f"; negotiated by the {s['method']} method in {s['alternations']} alternation(s), "
                 f"{len(s['trace'])} trials, predicted overshoot {os_}"
             )
-        events.append((a["t"], 2, line))
+        events.append((a["t"], _order(a), line))
     for e in w.get("energy", []):
         if e.get("ratio") is not None:
             events.append(
                 (
                     e["t"],
-                    3,
+                    _order(e) + 0.5,
                     f"projected network lifetime {e['lifetime_h_assigned']:.0f} h under "
                     f"the negotiated periods vs {e['lifetime_h_benchmark']:.0f} h at the benchmark "
                     f"periods (x{e['ratio']:.2f})",
@@ -81,7 +103,7 @@ def format_timeline(summary: dict[str, Any]) -> str:
             events.append(
                 (
                     s["t"],
-                    4,
+                    math.inf,
                     f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
                     f"{s['overshoot_pct']:.1f} %",
                 )
