@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from agents.wncsca import bounds
 from agents.wncsca.assignment import Assignment, Trial
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.model import LoopModel
@@ -125,10 +126,6 @@ def _agent_config(scenario: Scenario) -> WncscaConfig:
     return agents[0]
 
 
-def _grid(value: float, res: float) -> float:
-    return round(round(value / res) * res, 12)
-
-
 def largest_delay(
     model: LoopModel,
     loop: str,
@@ -163,35 +160,8 @@ def largest_delay(
     Seed 000, III.C ("adding time delay elements") and III.D, Fig. 9: ``tau_d-max`` at a given
     sampling period. Doubling starts at the loop's period (at least 16 grid steps).
     """
-    cfg = model.config
-    res = cfg.delay_resolution if resolution is None else resolution
-    if not res > 0:
-        raise ValueError(f"resolution must be > 0, got {res}")
-    limit = cfg.overshoot_limit
-    base = {n: float(delays.get(n, 0.0)) for n in model.loops}
-
-    def within(delay: float) -> bool:
-        trial = {**base, loop: delay}
-        return model.evaluate(periods, trial).overshoot_pct[loop] <= limit
-
-    if not within(0.0):
-        return math.nan
-    lo = 0.0
-    hi = _grid(max(float(periods.get(loop, model.benchmark[loop])), 16 * res), res)
-    while within(hi):  # grow until the limit is violated
-        lo = hi
-        if hi >= cfg.max_delay:
-            return lo
-        hi = _grid(min(2 * hi, cfg.max_delay), res)
-    while hi - lo > res * (1 + 1e-9):
-        mid = _grid((lo + hi) / 2, res)
-        if mid <= lo or mid >= hi:
-            break
-        if within(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    bound = bounds.largest_delay(model, loop, periods, delays, resolution)
+    return math.nan if bound.overshoot_pct > model.config.overshoot_limit else bound.tau_d_max
 
 
 def _others(model: LoopModel, loop: str) -> list[str]:

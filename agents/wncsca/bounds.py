@@ -9,11 +9,12 @@ fingerprint covers plants, controllers, loops, the test and the phase handling).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from agents.wncsca.model import LoopModel
 
-__all__ = ["DelayBound", "delay_bounds", "clear_cache"]
+__all__ = ["DelayBound", "delay_bounds", "largest_delay", "clear_cache"]
 
 _CACHE: dict[tuple, dict[str, DelayBound]] = {}
 
@@ -34,7 +35,7 @@ def delay_bounds(model: LoopModel) -> dict[str, DelayBound]:
     cfg = model.config
     key = (model.fingerprint, cfg.overshoot_limit, cfg.delay_resolution, cfg.max_delay)
     if key not in _CACHE:
-        _CACHE[key] = {loop: _bound(model, loop) for loop in model.loops}
+        _CACHE[key] = {loop: largest_delay(model, loop) for loop in model.loops}
     return _CACHE[key]
 
 
@@ -43,21 +44,46 @@ def clear_cache() -> None:
     _CACHE.clear()
 
 
-def _bound(model: LoopModel, loop: str) -> DelayBound:
+def _grid(value: float, res: float) -> float:
+    return round(round(value / res) * res, 12)
+
+
+def largest_delay(
+    model: LoopModel,
+    loop: str,
+    periods: Mapping[str, float] | None = None,
+    delays: Mapping[str, float] | None = None,
+    resolution: float | None = None,
+) -> DelayBound:
+    """Largest control-path delay of ``loop`` checked to keep its overshoot within the limit,
+    with the loops at ``periods`` (default: benchmark) and the other loops at ``delays``
+    (default 0; ``loop``'s own entry is ignored).
+
+    Doubling from the loop's period (at least 16 grid steps) until the limit is violated, then
+    bisection on a grid of ``resolution`` (default: the model's ``delay_resolution``) down to one
+    grid step. ``tau_d_max`` is a grid value within the limit whose next larger trial violated it
+    (or ``max_delay``); when even zero delay violates, it is 0 with that overshoot (> limit).
+    Seed 000, III.C ("adding time delay elements"), III.D (Fig. 9) and III.E step 2.
+    """
     cfg = model.config
-    limit, res = cfg.overshoot_limit, cfg.delay_resolution
+    res = cfg.delay_resolution if resolution is None else resolution
+    if not res > 0:
+        raise ValueError(f"resolution must be > 0, got {res}")
+    limit = cfg.overshoot_limit
+    periods = dict(periods or {})
+    base = {n: float((delays or {}).get(n, 0.0)) for n in model.loops}
     trials: list[tuple[float, float]] = []
 
     def overshoot(delay: float) -> float:
-        value = model.evaluate({}, {loop: delay}).overshoot_pct[loop]
+        value = model.evaluate(periods, {**base, loop: delay}).overshoot_pct[loop]
         trials.append((delay, value))
         return value
 
     os0 = overshoot(0.0)
     if os0 > limit:
-        return DelayBound(loop, 0.0, os0, tuple(trials))  # not even the benchmark is acceptable
+        return DelayBound(loop, 0.0, os0, tuple(trials))
     lo, os_lo = 0.0, os0
-    hi = max(model.benchmark[loop], 16 * res)
+    hi = _grid(max(float(periods.get(loop, model.benchmark[loop])), 16 * res), res)
     while True:  # grow until the limit is violated
         value = overshoot(hi)
         if value > limit:
@@ -65,9 +91,9 @@ def _bound(model: LoopModel, loop: str) -> DelayBound:
         lo, os_lo = hi, value
         if hi >= cfg.max_delay:
             return DelayBound(loop, lo, os_lo, tuple(trials))
-        hi = min(2 * hi, cfg.max_delay)
-    while hi - lo > res:
-        mid = round((lo + hi) / 2 / res) * res
+        hi = _grid(min(2 * hi, cfg.max_delay), res)
+    while hi - lo > res * (1 + 1e-9):
+        mid = _grid((lo + hi) / 2, res)
         if mid <= lo or mid >= hi:
             break
         value = overshoot(mid)
