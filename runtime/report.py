@@ -105,4 +105,11 @@ def write_plots(rec: RunRecord, out: Path) -> list[Path]:
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)
+    if rec.wncsca:
+        from agents.wncsca.plots import run_plots
+        from runtime.record import wncsca_summary
+
+        paths += run_plots(
+            wncsca_summary(rec.wncsca), out, unit=unit, end_time=to_units(rec.end_time)
+        )
     return paths

@@ -69,3 +69,93 @@ def fig10(assignment: Assignment, path: Path, *, limit: float = 25.0) -> Path:
 def _os(t: Trial) -> float:
     value = t.overshoot_pct[t.loop] if t.loop is not None else max(t.overshoot_pct.values())
     return value if math.isfinite(value) else float("nan")
+
+
+def assignment_from_dict(search: dict[str, Any]) -> Assignment:
+    """An :class:`Assignment` back from its ``as_dict`` form (a summary's ``search``)."""
+    trace = [
+        Trial(
+            alternation=t["alternation"],
+            loop=t["loop"],
+            step=t["step"],
+            period=t["period"],
+            periods=t["periods"],
+            overshoot_pct={n: math.inf if v is None else v for n, v in t["overshoot_pct"].items()},
+            ok=t["ok"],
+        )
+        for t in search["trace"]
+    ]
+    return Assignment(
+        method=search["method"],
+        delays=search["delays"],
+        periods=search["periods"],
+        overshoot_pct={n: math.inf if v is None else v for n, v in search["overshoot_pct"].items()},
+        feasible=search["feasible"],
+        converged=search["converged"],
+        alternations=search["alternations"],
+        trace=trace,
+    )
+
+
+def run_plots(
+    w: dict[str, Any],
+    out: Path,
+    *,
+    unit: str = "pu",
+    limit: float = 25.0,
+    end_time: float | None = None,
+) -> list[Path]:
+    """A run's agent plots: ``wncsca_periods.png`` (each loop's sampling period against time,
+    open intervals shaded, proposals marked by verdict) and ``search_<n>.png`` (Fig. 10 style,
+    one per negotiation)."""
+    plt = _pyplot()
+    paths = []
+    assignments = w.get("assignments", [])
+    if assignments:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        loops = sorted(assignments[0]["periods"])
+        end = max(a["t"] for a in assignments) if end_time is None else end_time
+        ts = [a["t"] for a in assignments] + [end]
+        for i, loop in enumerate(loops):
+            ps = [a["periods"][loop] for a in assignments]
+            cs = [a["control_periods"][loop] for a in assignments]
+            lw = 2 * (len(loops) - i) + 0.5  # earlier loops wider, visible under later ones
+            ax.step(ts, [*ps, ps[-1]], where="post", color=f"C{i}", lw=lw, label=f"{loop}")
+            ax.step(
+                ts,
+                [*cs, cs[-1]],
+                where="post",
+                color=f"C{i}",
+                ls=":",
+                lw=1.2,
+                label=f"{loop}: negotiated control period",
+            )
+        for a, t_next in zip(assignments, ts[1:], strict=True):
+            if not any(a["closed"].values()):
+                ax.axvspan(a["t"], t_next, color="0.9", lw=0)
+        marks = {
+            "accept": ("g", "^"),
+            "reject": ("r", "v"),
+            "refuse": ("k", "x"),
+            "keep": ("m", "s"),
+        }
+        for d in w.get("decisions", []):
+            if d["subject"] == "proposal" and d["verdict"] in marks:
+                c, m = marks[d["verdict"]]
+                ax.plot([d["t"]], [0.03], m, color=c, ms=9, transform=ax.get_xaxis_transform())
+        ax.set_yscale("log")
+        ax.set_xlabel(f"time [{unit}]")
+        ax.set_ylabel(f"sampling period [{unit}]")
+        ax.set_title(
+            "WNCSCA: periods (grey: loops open; ^ accepted, v rejected proposals)", fontsize=9
+        )
+        ax.grid(True, alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = out / "wncsca_periods.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    for n, a in enumerate(a for a in assignments if a.get("search")):
+        paths.append(fig10(assignment_from_dict(a["search"]), out / f"search_{n}.png", limit=limit))
+    return paths
