@@ -28,6 +28,9 @@ bench: $(STAMP)
 	$(BIN)/python bench/engines.py
 	$(BIN)/python bench/section3c.py
 	$(BIN)/python bench/realtime.py
+	$(BIN)/python bench/wncsca_figures.py
+	$(BIN)/python bench/wncsca_methods.py --quick
+	$(BIN)/python bench/wncsca_latency.py
 
 clean:
 	rm -rf $(VENV) runs
