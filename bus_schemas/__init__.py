@@ -9,6 +9,9 @@ from bus_schemas.bodies import (
     InjectRequest,
     Loss,
     ModeRequest,
+    MonitorAssessment,
+    MonitorCandidate,
+    MonitorHarris,
     Move,
     NetApplied,
     NetStats,
@@ -46,4 +49,7 @@ __all__ = [
     "Stop",
     "Tick",
     "Timing",
+    "MonitorAssessment",
+    "MonitorCandidate",
+    "MonitorHarris",
 ]

@@ -32,6 +32,9 @@ __all__ = [
     "Tick",
     "Done",
     "Stop",
+    "MonitorHarris",
+    "MonitorCandidate",
+    "MonitorAssessment",
 ]
 
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
@@ -329,3 +332,68 @@ class Stop(BaseModel):
     dropped_nodes: dict[str, int] = Field(
         default_factory=dict, description="nodes dropped from the run -> round they left in"
     )
+
+
+class MonitorHarris(BaseModel):
+    """The Harris (minimum-variance) index of a monitored loop, or why it is not identifiable
+    (seed 004; ``agents/monitor/harris.py``). Non-finite figures are sent as ``None``."""
+
+    model_config = _FROZEN
+
+    status: Literal["ok", "unidentifiable"]
+    index: float | None = Field(default=None, description="minimum variance / variance")
+    std: float | None = Field(default=None, description="standard error of the index")
+    ci: tuple[float, float] | None = Field(default=None, description="interval of the index")
+    confidence: float | None = Field(default=None, description="level of ci")
+    sigma2_mv: float | None = Field(default=None, description="minimum variance")
+    order: int | None = Field(default=None, ge=1, description="AR order used")
+    reason: str | None = Field(default=None, description="reason code when unidentifiable")
+    detail: str | None = None
+
+
+class MonitorCandidate(BaseModel):
+    """One candidate secondary of a monitored loop: the variance components 1a, 1b, 2a, 2b and
+    the predicted variance under cascade control, or why they are not identifiable (seed 004)."""
+
+    model_config = _FROZEN
+
+    name: str
+    d1: int = Field(ge=0, description="dead time secondary -> primary, samples")
+    d2: int = Field(ge=1, description="dead time move -> secondary, samples")
+    status: Literal["ok", "unidentifiable"]
+    components: dict[str, float] | None = Field(
+        default=None, description="'1a', '1b', '2a', '2b' -> variance"
+    )
+    band: tuple[float, float] | None = Field(
+        default=None, description="predicted variance of the primary under cascade control"
+    )
+    point: float | None = Field(default=None, description="working estimate 1a + 2a/2")
+    minimum: float | None = Field(default=None, description="component 1a: the cascade's bound")
+    reduction: float | None = Field(default=None, description="1 - point / variance now")
+    order: int | None = Field(default=None, ge=1, description="VAR order used")
+    reason: str | None = Field(default=None, description="reason code when unidentifiable")
+    detail: str | None = None
+
+
+class MonitorAssessment(BaseModel):
+    """A performance monitor's assessment of one loop (``monitor/assessment/<loop>``) over a
+    sliding window of its samples delivered before ``until``: ``ok`` (figures), or
+    ``insufficient_data`` / ``refused`` (``text`` says why; no figures)."""
+
+    model_config = _FROZEN
+
+    loop: str
+    status: Literal["ok", "insufficient_data", "refused"]
+    final: bool = Field(description="the assessment at the end of the run")
+    until: int = Field(ge=0, strict=True, description="samples delivered before this, ticks")
+    n_samples: int = Field(ge=0, description="samples in the window")
+    t_first: int | None = Field(default=None, description="first sample of the window, ticks")
+    t_last: int | None = Field(default=None, description="last sample of the window, ticks")
+    delay: int = Field(ge=1, description="dead time move -> primary, samples")
+    variance: float | None = Field(default=None, description="variance of the primary")
+    harris: MonitorHarris | None = None
+    candidates: tuple[MonitorCandidate, ...] = ()
+    ranking: tuple[str, ...] = Field(default=(), description="candidates, best first")
+    cascade: bool | None = Field(default=None, description="cascade control recommended")
+    secondary: str | None = Field(default=None, description="the recommended secondary")
+    text: str = Field(default="", description="the recommendation, or why there is none")

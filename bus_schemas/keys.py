@@ -41,6 +41,7 @@ __all__ = [
     "wncsca_decision",
     "wncsca_rates",
     "wncsca_timing",
+    "monitor_assessment",
 ]
 
 PREFIX = "wncs"
@@ -190,3 +191,8 @@ def wncsca_rates() -> str:
 def wncsca_timing() -> str:
     """Wall-clock decision times of the agent: measurements, excluded from the history digest."""
     return "wncsca/timing"
+
+
+def monitor_assessment(loop: str) -> str:
+    """A performance monitor's assessment of one loop (Harris index, cascade opportunities)."""
+    return f"monitor/assessment/{check_name(loop, 'loop')}"

@@ -6,6 +6,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from plants.cascade_ct import CascadeCT, CascadeCTParams
 from plants.cstr_recycle import CSTRRecycle, CSTRRecycleParams
 from plants.jcstr import JCSTR, JCSTRParams
 from plants.tank import Tank, TankParams
@@ -16,6 +17,7 @@ MODELS: dict[str, tuple[type[Any], type[BaseModel]]] = {
     "jcstr": (JCSTR, JCSTRParams),
     "tank": (Tank, TankParams),
     "cstr_recycle": (CSTRRecycle, CSTRRecycleParams),
+    "cascade_ct": (CascadeCT, CascadeCTParams),
 }
 
 

@@ -4,6 +4,7 @@
 ``wncs node SCENARIO NAME --connect EP --run-id ID``   run one node of the graph (or ``clock``)
 ``wncs report DIR``                    redraw a run's plots and print its figures
 ``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
+``wncs assess DATA --primary COL ...``  Harris index and cascade opportunities of a loop (seed 004)
 
 Exit codes: 0 success, 2 bad input (scenario, arguments), 3 the run was stopped by a fault,
 1 any other failure.
@@ -100,6 +101,56 @@ def build_parser() -> argparse.ArgumentParser:
     inject.add_argument("--network", default=None, help="gateway node (default: the only one)")
     inject.add_argument("--listen", default=None, help="router endpoint, instead of DIR")
     inject.add_argument("--run-id", default=None, help="run id, with --listen")
+
+    assess = sub.add_parser(
+        "assess",
+        help="Harris index and cascade opportunities of a loop from routine data (seed 004)",
+        description="Assess a simple-feedback loop from routine data: its Harris index with its "
+        "uncertainty and, per candidate secondary, the variance components 1a/1b/2a/2b and the "
+        "predicted variance under cascade control. DATA is a CSV file (columns as exported by a "
+        "historian) or a run directory (columns LOOP, LOOP.sp, PLANT.STATE). Exit codes: 0 "
+        "assessed, 2 bad input, 3 a part unidentifiable.",
+    )
+    assess.add_argument("data", help="CSV file of routine data, or a run directory")
+    assess.add_argument("--primary", required=True, help="primary controlled variable (PV)")
+    assess.add_argument(
+        "--secondary",
+        default="",
+        help="candidate secondary measurements, COL[,COL...] (none: Harris index only)",
+    )
+    assess.add_argument(
+        "--delays",
+        required=True,
+        help="d1,d2 per secondary in order (samples: secondary -> primary, move -> secondary; "
+        "every pair adds up to the delay move -> primary), or d alone without a secondary",
+    )
+    assess.add_argument(
+        "--setpoint", default=None, help="set-point column: analyse the control error SP - PV"
+    )
+    assess.add_argument("--sep", default=";", help="CSV field separator (default ';')")
+    assess.add_argument("--decimal", default=".", help="CSV decimal mark, '.' or ','")
+    assess.add_argument(
+        "--window", type=int, default=None, help="run: the last N samples delivered (default all)"
+    )
+    assess.add_argument(
+        "--start", type=float, default=None, help="run: ignore samples taken before this time"
+    )
+    assess.add_argument(
+        "--until",
+        type=float,
+        default=None,
+        help="run: samples delivered before this time (default the run's end time)",
+    )
+    assess.add_argument("--max-order", type=int, default=30, help="largest AR/VAR order tried")
+    assess.add_argument("--order", type=int, default=None, help="fixed AR/VAR order")
+    assess.add_argument("--criterion", choices=("aic", "bic"), default="aic")
+    assess.add_argument("--method", choices=("ls", "yule_walker"), default="ls")
+    assess.add_argument(
+        "--out",
+        default=None,
+        help="JSON report (default next to the data: "
+        "NAME.assessment.json, or RUN_DIR/assessment_PRIMARY.json)",
+    )
     return parser
 
 
@@ -265,6 +316,39 @@ def _cmd_inject(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_assess(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from agents.monitor.command import run
+    from agents.monitor.config import MonitorConfig
+
+    try:
+        config = MonitorConfig(
+            max_order=args.max_order,
+            order=args.order,
+            criterion=args.criterion,
+            method=args.method,
+        )
+    except ValidationError as err:
+        e = err.errors()[0]
+        raise ConfigError(f"--{str(e['loc'][0]).replace('_', '-')}: {e['msg']}") from err
+    secondaries = [s.strip() for s in args.secondary.split(",") if s.strip()]
+    return run(
+        args.data,
+        primary=args.primary,
+        secondaries=secondaries,
+        delays=args.delays,
+        out=args.out,
+        setpoint=args.setpoint,
+        sep=args.sep,
+        decimal=args.decimal,
+        window=args.window,
+        start=args.start,
+        until=args.until,
+        config=config,
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -277,6 +361,7 @@ def main(argv: list[str] | None = None) -> int:
             "report": _cmd_report,
             "inject": _cmd_inject,
             "analyze": _cmd_analyze,
+            "assess": _cmd_assess,
         }
         return commands[args.command](args)
     except ConfigError as err:

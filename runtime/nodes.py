@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from agents.monitor.node import MonitorNode
 from agents.operator.node import OperatorNode
 from agents.wncsca.node import WncscaNode
 from controllers.node import ControllerNode
@@ -20,6 +21,7 @@ NODE_CLASSES: dict[str, type[Node]] = {
     "gateway": NetworkNode,
     "operator": OperatorNode,
     "agent": WncscaNode,
+    "monitor": MonitorNode,
 }
 
 

@@ -23,6 +23,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
 from bus_schemas import keys
 from controllers.registry import LawConfig, uses_feedforward
@@ -213,7 +214,8 @@ NodeConfig = Annotated[
     | NetworkNodeConfig
     | GatewayNodeConfig
     | OperatorNodeConfig
-    | WncscaConfig,
+    | WncscaConfig
+    | MonitorNodeConfig,
     Field(discriminator="kind"),
 ]
 
@@ -387,6 +389,9 @@ class Scenario(BaseModel):
         if self.disturbances and not operators:
             raise ValueError("disturbances: a schedule needs an operator node to publish it")
         self._check_agent()
+        for name, node in self.nodes.items():
+            if node.kind == "monitor":
+                node.check(self, name)  # the loop and columns it assesses exist
         moved = {(lp.plant, lp.actuator) for lp in self.loops.values()}
         for i, dist in enumerate(self.disturbances):
             at = f"disturbances[{i}]"
@@ -435,6 +440,7 @@ class Scenario(BaseModel):
             cfg = self.nodes[name]
             named = [(f"order[{i}]", n) for i, n in enumerate(cfg.order or [])]
             named += [(f"ideal_period.{n}", n) for n in cfg.ideal_period]
+            named += [(f"alarm.{n}", n) for n in cfg.alarm]
             for mode in ("identification", "monitoring", "fault_detection"):
                 named += [(f"modes.{mode}.{n}", n) for n in getattr(cfg.modes, mode)]
             if cfg.test is not None:

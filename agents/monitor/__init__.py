@@ -15,4 +15,10 @@ and with which secondary measurement (Lakshminarayanan et al. 2006, variance dec
 * :mod:`agents.monitor.routine_data` -- :func:`~agents.monitor.routine_data.load_routine_csv`.
 * :mod:`agents.monitor.errors` -- :class:`~agents.monitor.errors.DataError` (column, row) and
   :class:`~agents.monitor.errors.IdentificationError` (reason).
+* :mod:`agents.monitor.config` -- analysis settings and the monitor node's configuration
+  (``kind: monitor`` in scenarios).
+* :mod:`agents.monitor.run_data` -- a loop's routine data from a run's messages (live or
+  recorded): column names, alignment, sliding window.
+* :mod:`agents.monitor.node` -- the monitor on the bus (``monitor/assessment/<loop>``).
+* :mod:`agents.monitor.command` and :mod:`agents.monitor.report` -- ``wncs assess`` and its text.
 """

@@ -27,8 +27,8 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from agents.monitor.config import MonitorConfig, SecondarySpec, rows_needed
 from agents.monitor.decomposition import Decomposition, decompose, rank_secondaries
 from agents.monitor.errors import DataError, IdentificationError
 from agents.monitor.harris import HarrisResult, harris_index
@@ -43,62 +43,6 @@ __all__ = [
     "assess",
     "assess_csv",
 ]
-
-
-class SecondarySpec(BaseModel):
-    """A candidate secondary measurement and the delays around it (samples)."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    name: str = Field(min_length=1, description="column / series name")
-    d1: int = Field(ge=0, description="dead time from this secondary to the primary")
-    d2: int = Field(ge=1, description="dead time from the manipulated variable to this secondary")
-
-
-class MonitorConfig(BaseModel):
-    """Settings of the analysis (defaults suit 1,000-50,000 samples of routine data)."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    max_order: int = Field(default=30, ge=1, description="largest AR/VAR order tried")
-    order: int | None = Field(default=None, ge=1, description="fixed order instead of selection")
-    criterion: Literal["aic", "bic"] = "aic"
-    method: Literal["ls", "yule_walker"] = Field(
-        default="ls", description="VAR estimator of the decomposition"
-    )
-    removed_2a: tuple[float, float] = Field(
-        default=(0.0, 0.5),
-        description="fraction of component 2a a cascade is assumed to remove: band "
-        "[1a + (1-hi) 2a, 1a + (1-lo) 2a]",
-    )
-    harris_uncertainty: Literal["delta", "bootstrap"] = "delta"
-    n_boot: int = Field(default=200, ge=2, description="bootstrap replicates (Harris)")
-    decomposition_boot: int = Field(
-        default=0, ge=0, description="bootstrap replicates for the components (0: none)"
-    )
-    seed: int = Field(default=0, description="seed of np.random.default_rng for bootstraps")
-    confidence: float = Field(default=0.95, gt=0, lt=1)
-    max_innovation_correlation: float = Field(default=0.99, gt=0, le=1)
-    min_reduction: float = Field(
-        default=0.2,
-        ge=0,
-        lt=1,
-        description="predicted relative variance reduction from which cascade is recommended",
-    )
-
-    @model_validator(mode="after")
-    def _band(self) -> MonitorConfig:
-        lo, hi = self.removed_2a
-        if not 0.0 <= lo <= hi <= 1.0:
-            raise ValueError(f"removed_2a must satisfy 0 <= lo <= hi <= 1, got {self.removed_2a}")
-        return self
-
-
-def rows_needed(config: MonitorConfig | None = None, n_series: int = 2) -> int:
-    """Fewest samples the models need: ``p + 5 (k p + 1)`` at the largest order, and 200."""
-    c = config or MonitorConfig()
-    p = c.order or c.max_order
-    return max(200, p + 5 * (n_series * p + 1))
 
 
 def _clean(x: Any) -> Any:

@@ -302,6 +302,7 @@ def test_a_droppable_node_is_dropped_and_the_run_carries_on(tmp_path):
 def test_wncs_inject_reroutes_a_running_run(tmp_path):
     """A relay failure injected into a running processes run: reroute, more hops, longer delays,
     the event in summary.json; bad requests are refused before anything is sent."""
+
     def edit(d: dict) -> None:
         d["nodes"]["network"].update(events=[])
         d["end_time"] = 12.0  # slack for the four `wncs inject` processes on a loaded machine
