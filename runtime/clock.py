@@ -162,6 +162,11 @@ class ClockRunner:
             express=True,
         )
 
+    def cancel(self, reason: str) -> None:
+        """Stop the run from outside (another thread): the clock publishes ``Stop(ok=False)``
+        with ``reason`` at its next wait, as for any fault (e.g. a node failed while starting)."""
+        self._queue.put(("cancel", reason, b""))
+
     def _on_alive(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
         self._queue.put(("alive", name, sample.kind))
@@ -281,6 +286,8 @@ class ClockRunner:
                     f"nodes {missing} did not come alive within "
                     f"{self.scenario.clock.startup_timeout_s} s"
                 )
+            if item[0] == "cancel":
+                raise NodeFault(item[1])
             if item[0] == "alive":
                 self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
             elif item[0] == "inject":
@@ -305,6 +312,8 @@ class ClockRunner:
                         f"(t = {to_units(tick.t):.6f} {self.scenario.time_unit}) within {timeout} s"
                     )
                 kind, key, payload = item
+                if kind == "cancel":
+                    raise NodeFault(key)
                 if kind == "alive":
                     self._handle_alive(key, payload)  # type: ignore[arg-type]
                     continue

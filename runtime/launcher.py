@@ -398,12 +398,14 @@ def _run_threads(
 
     errors: dict[str, str] = {}
     result: dict[str, int] = {}
+    clock: list[ClockRunner] = []
 
     def run_node(name: str) -> None:
         session = open_client(endpoint)
         try:
             if name == "clock":
                 runner = ClockRunner(session, run_id, scenario, realtime=realtime)
+                clock.append(runner)
                 result["clock"] = runner.run()
                 if runner.error:
                     errors["clock"] = runner.error
@@ -426,9 +428,13 @@ def _run_threads(
     while clock_thread.is_alive():
         if t_started is None and set(names) <= prog.alive:
             t_started = time.perf_counter()
-        if t_started is None and errors:  # a node failed while starting: do not wait for the clock
+        if t_started is None and errors and clock:  # a node failed while starting
             name = sorted(errors)[0]
-            return 1, f"node {name!r} failed while starting: {errors[name]}", None
+            message = f"node {name!r} failed while starting: {errors[name]}"
+            clock[0].cancel(message)  # the clock stops the others; no thread outlives the run
+            for th in threads:
+                th.join(_EXIT_GRACE_S)
+            return 1, message, None
         prog.show()
         clock_thread.join(0.05)
     for th in threads[1:]:

@@ -452,6 +452,14 @@ class Scenario(BaseModel):
                     raise ValueError(
                         f"nodes.{name}.{where}: unknown loop {loop!r} (loops: {sorted(self.loops)})"
                     )
+            steps = cfg.test.setpoints if cfg.test is not None else self.setpoints
+            unstepped = sorted(set(self.loops) - {s.loop for s in steps})
+            if unstepped:
+                where = "test.setpoints" if cfg.test is not None else "test (default: setpoints)"
+                raise ValueError(
+                    f"nodes.{name}.{where}: no set-point step for loop(s) {unstepped}; the agent "
+                    "judges a loop by the overshoot of its step"
+                )
 
     def _check_feedforward(self) -> None:
         """Every steady-state feedforward must be computable at every scheduled set point."""

@@ -154,3 +154,23 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
         assert 0 <= mine["lost"] - theirs["lost"] <= 1
         assert theirs["delay_mean"] == mine["delay_mean"]
     assert n_proposals == 3  # initial, r1 down, r2 down
+
+
+def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, monkeypatch):
+    """The launcher cancels the clock, which stops the other nodes: no node thread outlives the
+    run (a daemon thread still in zenoh at interpreter exit aborts the process)."""
+    from agents.operator.node import OperatorNode
+    from runtime import nodes
+
+    class Failing(OperatorNode):
+        def __init__(self, ctx) -> None:
+            super().__init__(ctx)
+            raise ValueError("boom at start")
+
+    monkeypatch.setitem(nodes.NODE_CLASSES, "operator", Failing)
+    res = launch(BENCHMARK, tmp_path / "run", engine="threads")
+    assert res.code == 1
+    assert "node 'operator' failed while starting: ValueError: boom at start" in res.error
+    names = set(load_scenario(BENCHMARK).participants()) | {"clock"}
+    alive = [th.name for th in threading.enumerate() if th.name in names and th.is_alive()]
+    assert alive == []
