@@ -345,6 +345,8 @@ class ClockRunner:
         assert self.pacer is not None
         while (wait := self.pacer.delay(t)) > 0:
             item = self._next(wait)
+            if item is not None and item[0] == "cancel":
+                raise NodeFault(item[1])
             if item is not None and item[0] == "alive":
                 self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
             elif item is not None and item[0] == "inject":
