@@ -274,12 +274,27 @@ class ModeRequest(BaseModel):
 
 
 class InjectRequest(BaseModel):
-    """An external reconfiguration for the clock to stamp into the run (``ops/inject``)."""
+    """An external input for the clock to stamp into the run (``ops/inject``): exactly one of a
+    network reconfiguration (``event``), an operating-mode request (``mode``) or a set-point
+    request (``setpoint``)."""
 
     model_config = _FROZEN
 
     network: str | None = Field(default=None, description="gateway node; None: the only one")
-    event: dict = Field(description="a topology event: {type: node_down, node: r1}, ...")
+    event: dict | None = Field(
+        default=None, description="a topology event: {type: node_down, node: r1}, ..."
+    )
+    mode: str | None = Field(default=None, description="an operating mode, for the agent")
+    setpoint: dict | None = Field(
+        default=None, description="{loop: name, value: number}, on ops/setpoint/<loop>"
+    )
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> InjectRequest:
+        given = [n for n in ("event", "mode", "setpoint") if getattr(self, n) is not None]
+        if len(given) != 1:
+            raise ValueError(f"exactly one of event, mode, setpoint; got {given or 'none'}")
+        return self
 
 
 class NetworkEvent(BaseModel):

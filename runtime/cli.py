@@ -91,11 +91,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     inject = sub.add_parser(
         "inject",
-        help="inject a network reconfiguration into a running run",
+        help="inject a network reconfiguration, a mode or a set point into a running run",
         description="wncs inject DIR EVENT [KEY=VALUE ...]  (or --listen EP --run-id ID EVENT ...)."
         " Events: node_down node=N | node_up node=N | link_degraded a=N b=M prr=P |"
         " delay_model_changed delay=JSON [link=JSON] | relay_added node=N links=JSON |"
-        " node_moved node=N links=JSON",
+        " node_moved node=N links=JSON | mode MODE (to the coordination agent) |"
+        " setpoint LOOP=VALUE",
     )
     inject.add_argument("words", nargs="+", help="DIR EVENT [KEY=VALUE ...]")
     inject.add_argument("--network", default=None, help="gateway node (default: the only one)")
@@ -312,7 +313,10 @@ def _cmd_inject(args: argparse.Namespace) -> int:
             raise ConfigError(f"{run_dir / RUN_FILE}: the run has no bus (direct engine)")
     request = build_request(words[0], words[1:], run_dir=run_dir, network=args.network)
     send(endpoint, run_id, request)
-    print(f"injected {request.event} into run {run_id}")
+    what = request.event or (
+        f"mode {request.mode}" if request.mode is not None else f"set point {request.setpoint}"
+    )
+    print(f"injected {what} into run {run_id}")
     return 0
 
 

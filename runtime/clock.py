@@ -16,7 +16,17 @@ from collections.abc import Iterable, Mapping
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import Done, InjectRequest, NetworkEvent, Stop, Tick, codec, keys
+from bus_schemas import (
+    Done,
+    InjectRequest,
+    ModeRequest,
+    NetworkEvent,
+    Setpoint,
+    Stop,
+    Tick,
+    codec,
+    keys,
+)
 from runtime.errors import NodeFault, ProtocolError, SchemaError
 from runtime.scenario import Scenario
 from runtime.time import TICKS_PER_UNIT, to_ticks, to_units
@@ -135,7 +145,7 @@ class ClockRunner:
         self.dropped_invalid: dict[str, dict[str, int]] = {}
         self.error: str | None = None
         self.dropped_nodes: list[dict[str, object]] = []
-        self._injections: list[tuple[str, dict]] = []
+        self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
 
     # -- bus plumbing ----------------------------------------------------------------------------
     def _full(self, rel: str) -> str:
@@ -178,32 +188,48 @@ class ClockRunner:
         self._queue.put(("inject", str(sample.key_expr), sample.payload.to_bytes()))
 
     def _take_injection(self, payload: bytes) -> None:
-        """Validate an external request and keep it for the next round (bad ones are logged)."""
+        """Validate an external request and keep it for the next round (bad ones are logged):
+        a network event for its gateway (``events/<network>``), a mode or a set-point request
+        as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
+        from agents.wncsca.config import MODES
         from gateway.topology import parse_event
 
         try:
             env = codec.decode_envelope(payload)
             request = codec.decode_body(env, InjectRequest)
-            gateways = sorted(n for n, c in self.scenario.nodes.items() if c.kind == "gateway")
-            network = request.network or (gateways[0] if len(gateways) == 1 else None)
-            if network not in gateways:
-                raise SchemaError(f"network {request.network!r} is not one gateway of {gateways}")
-            parse_event(request.event)
+            if request.mode is not None:
+                if self.scenario.agent_node() is None or request.mode not in MODES:
+                    raise SchemaError(f"mode {request.mode!r}: needs an agent and one of {MODES}")
+                rel, body = keys.ops_mode(), ModeRequest(mode=request.mode)
+            elif request.setpoint is not None:
+                loop = request.setpoint.get("loop")
+                if loop not in self.scenario.loops:
+                    raise SchemaError(f"setpoint: unknown loop {loop!r}")
+                rel = keys.setpoint(loop)
+                body = Setpoint(value=request.setpoint.get("value"))
+            else:
+                gateways = sorted(n for n, c in self.scenario.nodes.items() if c.kind == "gateway")
+                network = request.network or (gateways[0] if len(gateways) == 1 else None)
+                if network not in gateways:
+                    raise SchemaError(
+                        f"network {request.network!r} is not one gateway of {gateways}"
+                    )
+                parse_event(request.event)
+                rel, body = keys.network_events(network), NetworkEvent(event=request.event)
         except (SchemaError, ValueError) as err:
-            log.warning("clock: dropping injected event: %s", err)
+            log.warning("clock: dropping injected request: %s", err)
             return
-        log.info("clock: injected %s for %s, in the next round", request.event, network)
-        self._injections.append((network, request.event))
+        log.info("clock: injected %s on %s, in the next round", body, rel)
+        self._injections.append((rel, body))
 
     def _stamp_injections(self, tick: Tick) -> Tick:
-        """Publish pending external events as the clock's messages of the previous round and
+        """Publish pending external inputs as the clock's messages of the previous round and
         announce them in this round's expected counts (DESIGN section 3, external inputs)."""
         if not self._injections or tick.round == 0:
             return tick
         expected = dict(tick.expected)
-        for network, event in self._injections:
-            rel = keys.network_events(network)
-            self._publish(rel, NetworkEvent(event=event), round=tick.round - 1, t=tick.t)
+        for rel, body in self._injections:
+            self._publish(rel, body, round=tick.round - 1, t=tick.t)
             expected[rel] = expected.get(rel, 0) + 1
         self._injections.clear()
         return Tick(round=tick.round, t=tick.t, expected=dict(sorted(expected.items())))

@@ -1,10 +1,13 @@
-"""``wncs inject``: put a network reconfiguration into a running run.
+"""``wncs inject``: put a network reconfiguration, an operating mode or a set point into a
+running run.
 
 The request goes to the clock on ``ops/inject``; the clock stamps it into its next round as
-``events/<network>``, counted like any other message, so the history shows exactly when it took
-effect and a replay of the history reproduces the run (DESIGN section 3, external inputs).
-A request is checked here first: an unknown event type, a malformed field, or a node the run's
-network does not have is refused with a message naming it (exit code 2), and nothing is sent.
+``events/<network>`` (``wncs inject DIR node_down node=r1``), ``ops/mode`` (``wncs inject DIR
+mode steady_state``) or ``ops/setpoint/<loop>`` (``wncs inject DIR setpoint level=0.72``),
+counted like any other message, so the history shows exactly when it took effect and a replay of
+the history reproduces the run (DESIGN section 3, external inputs). A request is checked here
+first: an unknown event type, a malformed field, a node the run's network does not have, an
+unknown mode or loop is refused with a message naming it (exit code 2), and nothing is sent.
 """
 
 from __future__ import annotations
@@ -59,11 +62,43 @@ def _known_nodes(run_dir: Path, network: str | None) -> tuple[str, set[str]]:
     return network, nodes
 
 
+def _ops_request(kind: str, words: list[str], run_dir: Path | None) -> InjectRequest:
+    """``mode MODE`` or ``setpoint LOOP=VALUE``, checked against the run's scenario if known."""
+    import math
+
+    from agents.wncsca.config import MODES
+    from runtime.launcher import SCENARIO_FILE
+    from runtime.scenario import load_scenario
+
+    scenario = load_scenario(run_dir / SCENARIO_FILE) if run_dir is not None else None
+    if kind == "mode":
+        if len(words) != 1:
+            raise ConfigError("usage: wncs inject DIR mode MODE")
+        mode = words[0].removeprefix("mode=")
+        if mode not in MODES:
+            raise ConfigError(f"mode: unknown mode {mode!r} (modes: {', '.join(MODES)})")
+        if scenario is not None and scenario.agent_node() is None:
+            raise ConfigError("mode: the run has no coordination agent to follow modes")
+        return InjectRequest(mode=mode)
+    fields = parse_fields(words)
+    if len(fields) != 1:
+        raise ConfigError("usage: wncs inject DIR setpoint LOOP=VALUE")
+    [(loop, value)] = fields.items()
+    if scenario is not None and loop not in scenario.loops:
+        raise ConfigError(f"setpoint: unknown loop {loop!r} (loops: {sorted(scenario.loops)})")
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ConfigError(f"setpoint: {loop}: not a finite number: {value!r}")
+    return InjectRequest(setpoint={"loop": loop, "value": float(value)})
+
+
 def build_request(
     event_type: str, words: list[str], *, run_dir: Path | None, network: str | None
 ) -> InjectRequest:
-    """Validate an event given on the command line; raise ``ConfigError`` naming the problem."""
+    """Validate a request given on the command line; raise ``ConfigError`` naming the problem."""
     from gateway.topology import parse_event
+
+    if event_type in ("mode", "setpoint"):
+        return _ops_request(event_type, words, run_dir)
 
     data = {"type": event_type, **parse_fields(words)}
     try:

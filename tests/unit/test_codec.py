@@ -8,7 +8,24 @@ import msgpack
 import pytest
 import zenoh
 
-from bus_schemas import Done, Move, PlantState, Sample, Setpoint, Stop, Tick, codec, keys
+from bus_schemas import (
+    Decision,
+    Done,
+    InjectRequest,
+    ModeRequest,
+    Move,
+    NetApplied,
+    PlantState,
+    Rates,
+    Sample,
+    SamplingPeriod,
+    Setpoint,
+    Stop,
+    Tick,
+    Timing,
+    codec,
+    keys,
+)
 from runtime.errors import SchemaError
 
 BODIES = [
@@ -108,3 +125,94 @@ def test_keys_are_valid_key_expressions(rel):
 def test_bad_names_refused(bad):
     with pytest.raises(ValueError, match="key chunk"):
         keys.sensor("reactor", bad)
+
+
+# -- the coordination agent's and operations' bodies (round trip and refusals) -------------------
+AGENT_BODIES = [
+    Decision(
+        subject="proposal",
+        network="network",
+        proposal=1,
+        verdict="reject",
+        reasons=("level: control-path delay 0.3 >= its bound 0.252",),
+        delays={"level": 0.3},
+        bounds={"level": 0.252},
+        offending=("level",),
+        paths=("level.sensor",),
+    ),
+    Rates(
+        mode="steady_state",
+        periods={"level": 1_000_000},
+        closed={"level": False},
+        control_periods={"level": 275_000},
+        proposal=0,
+        method="paper",
+        overshoot_pct={"level": 24.6},
+    ),
+    SamplingPeriod(period=275_000),
+    ModeRequest(mode="steady_state"),
+    Timing(proposal=0, decision_s=0.6),
+    Setpoint(value=0.72, t_apply=16_000_000),
+    NetApplied(event="rates", source="agent", paths={}, proposal=0, periods={"level": 275_000}),
+    InjectRequest(mode="steady_state"),
+    InjectRequest(setpoint={"loop": "level", "value": 0.72}),
+    InjectRequest(event={"type": "node_down", "node": "r1"}),
+]
+
+
+@pytest.mark.parametrize("body", AGENT_BODIES, ids=lambda b: type(b).__name__)
+def test_agent_bodies_round_trip(body):
+    raw = codec.encode(run="r1", src="wncsca", seq=0, round=1, t=2, body=body)
+    assert codec.decode(raw, type(body)).body == body
+
+
+def _body(body_type, body) -> bytes:
+    env = {"v": 1, "run": "r1", "src": "a", "seq": 0, "round": 0, "t": 0, "body": body}
+    return msgpack.packb(env)
+
+
+@pytest.mark.parametrize(
+    "body_type, body, fragment",
+    [
+        (SamplingPeriod, {"period": 0}, "period"),
+        (SamplingPeriod, {"period": 0.5}, "period"),  # ticks, never float time
+        (
+            Rates,
+            {
+                "mode": "x",
+                "periods": {"level": -1},
+                "closed": {},
+                "control_periods": {},
+                "proposal": None,
+            },
+            "must be > 0 ticks",
+        ),
+        (Decision, {"subject": "proposal", "verdict": "maybe", "reasons": []}, "verdict"),
+        (Decision, {"subject": "weather", "verdict": "accept", "reasons": []}, "subject"),
+        (InjectRequest, {}, "exactly one of event, mode, setpoint"),
+        (InjectRequest, {"mode": "steady_state", "setpoint": {"loop": "level"}}, "exactly one"),
+        (Timing, {"proposal": 0, "decision_s": -1.0}, "decision_s"),
+        (Setpoint, {"value": 1.0, "t_apply": -5}, "t_apply"),
+    ],
+)
+def test_agent_bodies_reject_bad_input(body_type, body, fragment):
+    with pytest.raises(SchemaError, match=fragment):
+        codec.decode(_body(body_type, body), body_type)
+
+
+@pytest.mark.parametrize(
+    "rel",
+    [
+        keys.sampling("reactor", "H"),
+        keys.loop_setpoint("level"),
+        keys.ops_mode(),
+        keys.wncsca_decision(),
+        keys.wncsca_rates(),
+        keys.wncsca_timing(),
+        keys.net_proposal(),
+        keys.net_applied(),
+    ],
+)
+def test_agent_keys_are_valid_key_expressions(rel):
+    full = keys.full("r1a2", rel)
+    assert str(zenoh.KeyExpr(full)) == full
