@@ -200,10 +200,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
             print("\ncoordination agent (WNCSCA) timeline:")
             print(format_timeline(s))
-        print(
-            f"\nartefacts in {Path(args.out).resolve()}: summary.json, "
-            + ", ".join(f"{n}.png" for n in s["loops"])
-        )
+        pngs = sorted(p.name for p in Path(args.out).glob("*.png"))
+        print(f"\nartefacts in {Path(args.out).resolve()}: summary.json, " + ", ".join(pngs))
     return 0
 
 
