@@ -50,7 +50,7 @@ class WncscaNode(Node):
         t0 = time.perf_counter()
         neg = self.core.on_proposal(env.src, body)
         paths = body.get("paths") if isinstance(body, dict) else None
-        self._publish_decision(neg, sorted(paths) if isinstance(paths, dict) else [])
+        self._publish_decision(neg, sorted(paths, key=str) if isinstance(paths, dict) else [])
         if neg.decision.verdict == "accept":
             self._publish_rates(neg)
         self.publish(
