@@ -68,12 +68,20 @@ For a non-linear plant (the column of :mod:`plants.column`) ``x`` is a deviation
 operating point's input. With ``measurement="output"`` the law takes the measured outputs and
 uses ``x = C_m^-1 (y - y_bar)`` (a two-state reference model with two outputs); with ``"state"``
 the caller passes the reduced state itself (e.g. ``W (x - x*)`` of a balanced reduction).
+
+On the platform
+---------------
+:class:`MultiLoopMRAC` is the law a controller node with ``loops: [...]`` runs (``type: mrac``):
+loop ``i`` measures ``x_i``, moves ``u_i`` and its set point is ``u_c,i``. :func:`replay` re-runs
+it over a run's executions (:func:`runtime.direct.multi_loop_executions`) to recover ``x_m``,
+``e`` and ``theta``, which are not on the bus.
 """
 
 from __future__ import annotations
 
+import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Literal
 
 import numpy as np
@@ -94,10 +102,14 @@ __all__ = [
     "THESIS_A0",
     "THESIS_B0",
     "THESIS_Q",
+    "MultiLoopMRAC",
+    "replay",
 ]
 
 Array = NDArray[np.float64]
 Matrix = tuple[tuple[float, ...], ...]
+
+log = logging.getLogger(__name__)
 
 THESIS_A0: Array = np.array([[-6.79, -0.90], [1.46, -0.24]])
 """Nominal ``A`` that gives the thesis's initial ``theta`` (``A_m`` to two significant digits)."""
@@ -276,7 +288,8 @@ class MRACConfig(BaseModel):
             try:
                 compatibility_theta(a0, b0, am, np.array(self.B_m))
             except ValueError as exc:
-                raise ValueError(f"B0: {exc}") from None
+                field = "B0" if self.B0 is not None else "B_m (B0 not given: the nominal B is B_m)"
+                raise ValueError(f"{field}: {exc}") from None
         elif len(self.theta0) != 2 * n * n or not all(map(math.isfinite, self.theta0)):
             raise ValueError(f"theta0 must be {2 * n * n} finite numbers, got {self.theta0}")
         for name in ("x_m0", "u_bar", "y_bar"):
@@ -523,3 +536,107 @@ def continuous_loop_rhs(
         return np.concatenate((dx, dxm, dth))
 
     return f
+
+
+class MultiLoopMRAC:
+    """The MRAC as a multi-loop control law of the platform (a controller node with ``loops:``).
+
+    Loop ``i`` of the node's ``loops: [...]`` (in that order) measures ``x_i`` (or ``y_i`` with
+    ``measurement="output"``), moves ``u_i``, and its set point is the reference command
+    ``u_c,i`` (4.9): the set points are what the thesis feeds the reference model, in the units
+    of the plant's inputs, not desired values of the measured variables (the reference model's
+    steady state is ``x_m = -A_m^-1 B_m u_c``). Each execution is one :meth:`MRAC.step` at the
+    execution's time, so the adaptation (5.8) uses the actual time since the previous one.
+
+    A divergence with ``on_divergence="raise"`` stops the node (and the run, naming the node);
+    with ``"freeze"`` it is logged once as a warning and the law keeps its last bounded ``theta``.
+
+    Parameters
+    ----------
+    config : MRACConfig
+        The controller's configuration.
+    loops : sequence of str
+        The loops it controls, in the order of ``x`` and ``u``.
+    """
+
+    multi_loop = True
+
+    def __init__(self, config: MRACConfig, loops: Sequence[str]) -> None:
+        self.check_loops(config, loops)
+        self.loops = tuple(loops)
+        self.mrac = MRAC(config)
+        self._warned = False
+
+    @staticmethod
+    def check_loops(config: MRACConfig, loops: Sequence[str]) -> None:
+        """Refuse a loop list that does not match the reference model's order (``ValueError``)."""
+        n = len(config.A_m)
+        if len(loops) != n:
+            raise ValueError(
+                f"the MRAC's reference model has {n} states, so it controls exactly {n} loops "
+                f"(x_i measured, u_i moved, u_c,i the set point of loop i); got {len(loops)}: "
+                f"{list(loops)}"
+            )
+
+    @classmethod
+    def from_config(
+        cls, config: MRACConfig, *, loops: Sequence[str], plant: object, tau_s: float
+    ) -> MultiLoopMRAC:
+        """Build from the scenario (the plant and sampling period are not used: the MRAC is
+        designed from its reference model and nominal plant, and uses the actual time between
+        executions)."""
+        return cls(config, loops)
+
+    def reset(self) -> None:
+        """Back to ``theta0`` and ``x_m0``."""
+        self.mrac.reset()
+        self._warned = False
+
+    def step(self, t: float, y: Mapping[str, float], r: Mapping[str, float]) -> dict[str, float]:
+        """One execution: measurements ``y`` and reference commands ``r`` by loop; returns each
+        loop's move."""
+        u = self.mrac.step(t, [y[n] for n in self.loops], [r[n] for n in self.loops])
+        if self.mrac.diverged and not self._warned:
+            self._warned = True
+            log.warning("%s; adaptation frozen", self.mrac.divergence_message)
+        return {n: float(u[i]) for i, n in enumerate(self.loops)}
+
+
+def replay(
+    config: MRACConfig,
+    loops: Sequence[str],
+    executions: Iterable[tuple[float, Mapping[str, float], Mapping[str, float]]],
+) -> dict[str, Array]:
+    """Re-run the MRAC over a run's executions and return its signals (the thesis's Fig. 6.3-6.5).
+
+    Parameters
+    ----------
+    config : MRACConfig
+        The controller's configuration.
+    loops : sequence of str
+        Its loops, in order.
+    executions : iterable of (t, y, r)
+        Execution time (time units), held measurement and reference command per loop, e.g. from
+        :func:`runtime.direct.multi_loop_executions` (a bus run's executions are not on the bus,
+        the samples and set points they follow are).
+
+    Returns
+    -------
+    dict
+        ``t``; ``x`` the state the law used, ``x_m`` the reference state, ``e = x - x_m``, ``y_m =
+        C_m x_m``, ``u_c``, ``u`` the moves, ``theta``; arrays with one row per execution.
+    """
+    law = MultiLoopMRAC(config, loops)
+    m = law.mrac
+    rec: dict[str, list] = {k: [] for k in ("t", "x", "x_m", "e", "y_m", "u_c", "u", "theta")}
+    for t, y, r in executions:
+        u = law.step(t, y, r)
+        rec["t"].append(t)
+        rec["x"].append(m.e + m.x_m)
+        rec["x_m"].append(m.x_m.copy())
+        rec["e"].append(m.e.copy())
+        rec["y_m"].append(m.y_m)
+        rec["u_c"].append([r[n] for n in loops])
+        rec["u"].append([u[n] for n in loops])
+        rec["theta"].append(m.theta.copy())
+    return {k: np.array(v, dtype=float) for k, v in rec.items()}

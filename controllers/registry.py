@@ -4,29 +4,46 @@ To add a law: a frozen pydantic config with ``type: Literal["name"]``, a class w
 ``reset()``, ``step(t, y, r) -> u`` and (if it takes a steady-state feedforward)
 ``set_feedforward(u_bar)``; register both in :data:`LAWS` and add the config to
 :data:`LawConfig`. Nodes and the direct engine use only this module, never a law by name.
+
+A **multi-loop** law (class attribute ``multi_loop = True``) controls several loops at once (a
+controller node with ``loops: [a, b, ...]``): its ``step(t, y, r) -> u`` takes the latest
+measurement and the set point of every loop by name (``dict[str, float]``) and returns a move for
+every loop; it may have a static ``check_loops(config, loops)`` that refuses a loop list
+(``ValueError``) and a classmethod ``from_config(config, *, loops, plant, tau_s)``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
+from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
 from controllers.pi import PI, PIConfig
 
-__all__ = ["LAWS", "LawConfig", "build_law", "uses_feedforward"]
+__all__ = [
+    "LAWS",
+    "LawConfig",
+    "build_law",
+    "build_multi_loop_law",
+    "check_loops",
+    "is_multi_loop",
+    "uses_feedforward",
+]
 
 LAWS: dict[str, type[Any]] = {
     "pi": PI,  # seed 000: PI with steady-state feedforward
     "nlpi": NonlinearPI,  # seed 002: feedback-linearizing 2-DOF PI
     "pi2dof": TwoDofPI,  # seed 002: fixed-gain 2-DOF PI (the baseline)
     "stnlpi": SelfTuningNLPI,  # seed 002: EW-RLS self-tuning non-linear PI
+    "mrac": MultiLoopMRAC,  # seed 003: model-reference adaptive control (multi-loop)
 }
 
 LawConfig = Annotated[
-    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig, Field(discriminator="type")
+    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig | MRACConfig, Field(discriminator="type")
 ]
 """The discriminated union of every law's configuration (``PIConfig | OtherConfig | ...``)."""
 
@@ -34,6 +51,18 @@ LawConfig = Annotated[
 def uses_feedforward(config: BaseModel) -> bool:
     """Whether the law takes the plant's steady-state input ``u_bar`` (seed 000, eq. (5)-(7))."""
     return getattr(config, "feedforward", "none") == "steady_state"
+
+
+def is_multi_loop(config: BaseModel) -> bool:
+    """Whether the law of ``config`` controls several loops at once (``loops:``)."""
+    return bool(getattr(LAWS[config.type], "multi_loop", False))  # type: ignore[attr-defined]
+
+
+def check_loops(config: BaseModel, loops: Sequence[str]) -> None:
+    """Refuse a multi-loop law's loop list that does not fit it (``ValueError`` with the reason)."""
+    check = getattr(LAWS[config.type], "check_loops", None)  # type: ignore[attr-defined]
+    if check is not None:
+        check(config, loops)
 
 
 def build_law(config: BaseModel, *, u_bar: float, plant: Any, tau_s: float) -> Any:
@@ -54,3 +83,27 @@ def build_law(config: BaseModel, *, u_bar: float, plant: Any, tau_s: float) -> A
     if hasattr(cls, "from_config"):
         return cls.from_config(config, u_bar=u_bar, plant=plant, tau_s=tau_s)
     return cls(config, u_bar=u_bar)
+
+
+def build_multi_loop_law(
+    config: BaseModel, *, loops: Sequence[str], plant: Any, tau_s: float
+) -> Any:
+    """The law object of a multi-loop ``config`` for the loops ``loops`` (in that order).
+
+    Parameters
+    ----------
+    config : BaseModel
+        A validated configuration of a multi-loop law.
+    loops : sequence of str
+        The controller's loops, in the order its ``loops:`` lists them.
+    plant : object
+        The plant model of the first loop, for laws designed from its parameters.
+    tau_s : float
+        The shortest nominal sampling period of the loops.
+    """
+    cls = LAWS[config.type]  # type: ignore[attr-defined]
+    if not getattr(cls, "multi_loop", False):
+        raise ValueError(f"law {config.type!r} controls one loop; use build_law")  # type: ignore[attr-defined]
+    if hasattr(cls, "from_config"):
+        return cls.from_config(config, loops=loops, plant=plant, tau_s=tau_s)
+    return cls(config, loops)

@@ -7,8 +7,11 @@ from typing import Any
 from pydantic import BaseModel
 
 from plants.cascade_ct import CascadeCT, CascadeCTParams
+from plants.column import ColumnParams
+from plants.column_plant import ColumnPlant
 from plants.cstr_recycle import CSTRRecycle, CSTRRecycleParams
 from plants.jcstr import JCSTR, JCSTRParams
+from plants.perturbed_reduced import PerturbedReduced, PerturbedReducedParams
 from plants.tank import Tank, TankParams
 
 __all__ = ["MODELS", "build", "params_type"]
@@ -18,6 +21,8 @@ MODELS: dict[str, tuple[type[Any], type[BaseModel]]] = {
     "tank": (Tank, TankParams),
     "cstr_recycle": (CSTRRecycle, CSTRRecycleParams),
     "cascade_ct": (CascadeCT, CascadeCTParams),
+    "column": (ColumnPlant, ColumnParams),  # seed 003: the non-linear distillation column
+    "perturbed_reduced": (PerturbedReduced, PerturbedReducedParams),  # seed 003, section 6.3.1
 }
 
 

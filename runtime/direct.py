@@ -14,7 +14,15 @@ agent to call it thousands of times. At each instant ``t`` (integer ticks):
    network node uses (constant ``tau_d``, or drawn over a WSN);
 3. set-point changes due at ``t`` update set points and feedforwards (operator -> controllers);
 4. samples delivered at ``t`` are handed to their controllers, which compute moves with the set
-   points of ``t`` (controller node, after its messages); moves enter the actuator path;
+   points of ``t`` (controller node, after its messages); moves enter the actuator path. A
+   single-loop controller makes one move per sample. A multi-loop controller
+   (:mod:`controllers.node`) takes its loops' samples in by round, as its node does: first those
+   delivered over a delayed path (they arrive in the instant's first round), then those over a
+   zero-delay path (one round later), each batch in key order, and executes once per non-empty
+   batch (once every loop has delivered), making a move for every loop. Each delivered sample is
+   recorded with the ``k``-th move of its loop made at its instant if it is the ``k``-th sample
+   of its loop delivered then (``None`` if there is none), which is how
+   :func:`runtime.history.load_record` pairs them from a bus run's history;
 5. commands arriving at ``t`` are applied from ``t`` on (zero-order hold).
 
 A plant integrates only to instants it has something to do at, so its trajectory does not depend
@@ -31,14 +39,15 @@ from typing import Any
 
 import numpy as np
 
-from controllers.registry import build_law, uses_feedforward
+from bus_schemas import keys
+from controllers.registry import build_law, build_multi_loop_law, uses_feedforward
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, path_hops
 from plants.integrate import integrator_of
 from runtime.record import LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
 from runtime.time import to_ticks, to_units
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "Execution", "multi_loop_executions"]
 
 
 @dataclass
@@ -78,6 +87,15 @@ class _Loop:
     record: LoopRecord
     noise: float
     rng: Any
+    multi: Any = None  # the _MultiController it belongs to, or None (single-loop controller)
+
+
+@dataclass
+class _MultiController:
+    name: str
+    loops: list[_Loop]  # in the order of the node's loops:
+    law: Any
+    held: dict[str, tuple[int, float]]  # loop -> (t_sampled, value), as the node holds them
 
 
 def simulate(scenario: Scenario) -> RunRecord:
@@ -134,7 +152,8 @@ def simulate(scenario: Scenario) -> RunRecord:
     loops: dict[str, _Loop] = {}
     for name, lp in sorted(scenario.loops.items()):
         plant = plants[lp.plant]
-        law_cfg = scenario.nodes[lp.controller].law
+        ctrl_cfg = scenario.nodes[lp.controller]
+        law_cfg = ctrl_cfg.law
         ff = scenario.feedforward(name) if uses_feedforward(law_cfg) else None
         u_bar = ff.u_bar(scenario.plant_setpoints(lp.plant, setpoints)) if ff else 0.0
         loops[name] = _Loop(
@@ -144,7 +163,11 @@ def simulate(scenario: Scenario) -> RunRecord:
             u_index=plant.model.input_names.index(lp.actuator),
             tau_s=to_ticks(lp.tau_s),
             carrier=carriers[lp.network],
-            law=build_law(law_cfg, u_bar=u_bar, plant=plant.model, tau_s=lp.tau_s),
+            law=(
+                build_law(law_cfg, u_bar=u_bar, plant=plant.model, tau_s=lp.tau_s)
+                if ctrl_cfg.loops is None
+                else None  # a multi-loop controller's law is built once, below
+            ),
             feedforward=ff,
             next_sample=0,
             deliveries=[],
@@ -158,6 +181,21 @@ def simulate(scenario: Scenario) -> RunRecord:
             noise=scenario.nodes[lp.plant].noise.get(lp.sensor, 0.0),
             rng=scenario.sensor_rng(lp.plant, lp.sensor),
         )
+    multis: list[_MultiController] = []
+    for cname, cfg in sorted(scenario.nodes.items()):
+        if cfg.kind != "controller" or cfg.loops is None:
+            continue
+        members = [loops[n] for n in cfg.loops]
+        law = build_multi_loop_law(
+            cfg.law,
+            loops=cfg.loops,
+            plant=members[0].plant.model,
+            tau_s=min(scenario.loops[n].tau_s for n in cfg.loops),
+        )
+        mc = _MultiController(name=cname, loops=members, law=law, held={})
+        for member in members:
+            member.multi = mc
+        multis.append(mc)
     schedule = sorted(
         ((to_ticks(c.t), i, c.loop, c.value) for i, c in enumerate(scenario.setpoints))
     )
@@ -246,6 +284,8 @@ def simulate(scenario: Scenario) -> RunRecord:
                 lp.law.set_feedforward(lp.feedforward.u_bar(sp))
         # 4. deliveries -> control moves
         for lp in loops.values():
+            if lp.multi is not None:
+                continue
             while lp.deliveries and lp.deliveries[0][0] == t:
                 _, _, y, t_sampled = heapq.heappop(lp.deliveries)
                 u = lp.law.step(tu, y, setpoints[lp.name])
@@ -259,6 +299,8 @@ def simulate(scenario: Scenario) -> RunRecord:
                     lp.record.lost_moves += 1
                 else:
                     heapq.heappush(lp.commands, (t_arrive, next(order), u))
+        for mc in multis:
+            _execute_multi(mc, t, setpoints, order)
         # 5. commands and disturbances arriving at t are applied from t on
         while disturbances and disturbances[0][0] == t:
             _, _, plant_name, index, value = heapq.heappop(disturbances)
@@ -285,3 +327,97 @@ def simulate(scenario: Scenario) -> RunRecord:
     rec.wall_s = time.perf_counter() - wall0
     rec.phases = {"run": rec.wall_s}
     return rec
+
+
+def _execute_multi(mc: _MultiController, t: int, setpoints: dict[str, float], order: Any) -> None:
+    """Step 4 for a multi-loop controller at ``t``: its node's rounds at ``t``, batch by batch."""
+    delayed: list[tuple[_Loop, float, int]] = []
+    immediate: list[tuple[_Loop, float, int]] = []
+    for lp in mc.loops:
+        while lp.deliveries and lp.deliveries[0][0] == t:
+            _, _, y, t_sampled = heapq.heappop(lp.deliveries)
+            (immediate if t_sampled == t else delayed).append((lp, y, t_sampled))
+    if not delayed and not immediate:
+        return
+    first = {lp.name: len(lp.record.t) for lp in mc.loops}
+    moves: dict[str, list[float]] = {lp.name: [] for lp in mc.loops}
+    tu = to_units(t)
+    for batch in (delayed, immediate):
+        if not batch:
+            continue
+        batch.sort(key=lambda s: keys.meas(s[0].name))  # the node's (key, src, seq) order
+        for lp, y, t_sampled in batch:
+            rec = lp.record
+            rec.t.append(t)
+            rec.y.append(y)
+            rec.u.append(None)
+            rec.t_sampled.append(t_sampled)
+            held = mc.held.get(lp.name)
+            if held is None or t_sampled >= held[0]:
+                mc.held[lp.name] = (t_sampled, y)
+        if len(mc.held) < len(mc.loops):
+            continue  # some loop has not delivered yet: no move
+        u = mc.law.step(
+            tu,
+            {lp.name: mc.held[lp.name][1] for lp in mc.loops},
+            {lp.name: setpoints[lp.name] for lp in mc.loops},
+        )
+        for lp in mc.loops:
+            moves[lp.name].append(u[lp.name])
+            t_arrive = lp.carrier.deliver(lp.name, ACTUATOR, t)
+            if t_arrive is None:
+                lp.record.lost_moves += 1
+            else:
+                heapq.heappush(lp.commands, (t_arrive, next(order), u[lp.name]))
+    for lp in mc.loops:  # the k-th sample of a loop at t goes with its k-th move at t
+        made = moves[lp.name]
+        for k, i in enumerate(range(first[lp.name], len(lp.record.t))):
+            lp.record.u[i] = made[k] if k < len(made) else None
+
+
+@dataclass(frozen=True)
+class Execution:
+    """One execution of a multi-loop controller: its time (ticks), the held measurement and the
+    set point of each of its loops."""
+
+    t: int
+    y: dict[str, float]
+    r: dict[str, float]
+
+
+def multi_loop_executions(scenario: Scenario, rec: RunRecord, controller: str) -> list[Execution]:
+    """The executions of multi-loop controller ``controller`` in a run, rebuilt from its record.
+
+    The record of any engine holds every delivered sample (delivery time, value, sampling time)
+    and every set-point change; the node's rule (:mod:`controllers.node`, step 4 above) gives when
+    it executed and with what. Feeding them to a fresh law reproduces the run's moves, and the
+    law's internal signals with them (for the MRAC: the reference model's ``x_m``, the error
+    ``e``, ``theta``), which are not on the bus.
+
+    Raises
+    ------
+    ValueError
+        If ``controller`` is not a multi-loop controller of ``scenario``.
+    """
+    cfg = scenario.nodes.get(controller)
+    if cfg is None or cfg.kind != "controller" or cfg.loops is None:
+        raise ValueError(f"{controller!r} is not a multi-loop controller of {scenario.name!r}")
+    names = list(cfg.loops)
+    # (t, batch: 0 delayed / 1 zero-delay, key, position) -> sample
+    arrivals = []
+    for name in names:
+        lr = rec.loops[name]
+        for i, (t, y, ts) in enumerate(zip(lr.t, lr.y, lr.t_sampled, strict=True)):
+            arrivals.append((t, int(ts == t), keys.meas(name), i, name, y, ts))
+    arrivals.sort(key=lambda a: a[:4])
+    changes = {n: rec.loops[n].setpoints for n in names}
+    held: dict[str, tuple[int, float]] = {}
+    out: list[Execution] = []
+    for (t, _), group in itertools.groupby(arrivals, key=lambda a: a[:2]):
+        for *_, name, y, ts in group:
+            if name not in held or ts >= held[name][0]:
+                held[name] = (ts, y)
+        if len(held) == len(names):
+            r = {n: [v for tc, v in changes[n] if tc <= t][-1] for n in names}
+            out.append(Execution(t=t, y={n: held[n][1] for n in names}, r=r))
+    return out

@@ -26,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
 from bus_schemas import keys
-from controllers.registry import LawConfig, uses_feedforward
+from controllers.registry import LawConfig, check_loops, is_multi_loop, uses_feedforward
 from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
@@ -130,13 +130,51 @@ class PlantNodeConfig(BaseModel):
 
 
 class ControllerNodeConfig(BaseModel):
-    """A controller of one loop."""
+    """A controller of one loop (``loop: name``), or of several at once (``loops: [a, b]``, for a
+    multi-loop law such as the MRAC: see :mod:`controllers.node` for how it executes)."""
 
     model_config = _STRICT
 
     kind: Literal["controller"]
-    loop: str
+    loop: str | None = Field(default=None, description="the one loop of a single-loop law")
+    loops: tuple[str, ...] | None = Field(
+        default=None, description="the loops of a multi-loop law, in the order of its x and u"
+    )
     law: LawConfig
+
+    @model_validator(mode="after")
+    def _one_or_several(self) -> ControllerNodeConfig:
+        multi = is_multi_loop(self.law)
+        if self.loop is not None and self.loops is not None:
+            raise ValueError("loops: give either loop: (one loop) or loops: (several), not both")
+        if self.loops is None:
+            if self.loop is None:
+                raise ValueError(
+                    "loops: a controller names its loop (loop: name) or loops (loops: [a, b])"
+                )
+            if multi:
+                raise ValueError(
+                    f"loop: law {self.law.type!r} controls several loops at once; name them "
+                    "with loops: [...]"
+                )
+            return self
+        if not multi:
+            raise ValueError(
+                f"loops: law {self.law.type!r} controls one loop; name it with loop: (a loop per "
+                "controller node)"
+            )
+        if len(set(self.loops)) != len(self.loops):
+            raise ValueError(f"loops: a loop is named twice in {list(self.loops)}")
+        try:
+            check_loops(self.law, self.loops)
+        except ValueError as err:
+            raise ValueError(f"loops: {err}") from err
+        return self
+
+    @property
+    def loop_names(self) -> tuple[str, ...]:
+        """The loops it controls, in order (one for a single-loop law)."""
+        return self.loops if self.loops is not None else (str(self.loop),)
 
 
 class NetworkNodeConfig(BaseModel):
@@ -325,6 +363,15 @@ class Scenario(BaseModel):
                 raise ValueError(f"{where}: node {name!r} is a {node.kind}, expected a {kind}")
             return node
 
+        for name, node in self.nodes.items():
+            if node.kind != "controller" or node.loops is None:
+                continue
+            for i, lname in enumerate(node.loops):
+                if lname not in self.loops:
+                    raise ValueError(
+                        f"nodes.{name}.loops[{i}]: unknown loop {lname!r} "
+                        f"(loops: {sorted(self.loops)})"
+                    )
         controlled: dict[str, str] = {}
         for lname, loop in self.loops.items():
             at = f"loops.{lname}"
@@ -341,11 +388,10 @@ class Scenario(BaseModel):
                     f"(inputs: {list(plant.input_names)})"
                 )
             ctrl = node_of("controller", loop.controller, f"{at}.controller")
-            if ctrl.loop != lname:
-                raise ValueError(
-                    f"{at}.controller: node {loop.controller!r} controls loop {ctrl.loop!r}"
-                )
-            if loop.controller in controlled:
+            if lname not in ctrl.loop_names:
+                what = f"loop {ctrl.loop!r}" if ctrl.loops is None else f"loops {list(ctrl.loops)}"
+                raise ValueError(f"{at}.controller: node {loop.controller!r} controls {what}")
+            if loop.controller in controlled and ctrl.loops is None:
                 raise ValueError(
                     f"{at}.controller: {loop.controller!r} already controls "
                     f"loop {controlled[loop.controller]!r}"
@@ -376,8 +422,24 @@ class Scenario(BaseModel):
             if to_ticks(loop.tau_s) < 1:
                 raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
         for name, node in self.nodes.items():
-            if node.kind == "controller" and name not in controlled:
-                raise ValueError(f"nodes.{name}.loop: no loop names {name!r} as its controller")
+            if node.kind != "controller":
+                continue
+            if node.loops is None:
+                if name not in controlled:
+                    raise ValueError(f"nodes.{name}.loop: no loop names {name!r} as its controller")
+                continue
+            for i, lname in enumerate(node.loops):
+                at = f"nodes.{name}.loops[{i}]"
+                if self.loops[lname].controller != name:
+                    raise ValueError(
+                        f"{at}: loop {lname!r} names {self.loops[lname].controller!r} as its "
+                        "controller"
+                    )
+            if self.agent_node() is not None:
+                raise ValueError(
+                    f"nodes.{name}.loops: the coordination agent governs single-loop controllers "
+                    "only (it opens, closes and re-tunes loops one by one)"
+                )
         for i, name in enumerate(self.clock.may_drop):
             if name not in self.nodes:
                 raise ValueError(f"clock.may_drop[{i}]: unknown node {name!r}")
