@@ -81,7 +81,14 @@ class DelayedUpdates:
         """``rho(M_d(h))`` for one period or an array of periods."""
         scalar = np.ndim(h) == 0
         hs = np.atleast_1d(np.asarray(h, dtype=float))
-        out = np.array([np.max(np.abs(np.linalg.eigvals(self.monodromy(x, d)))) for x in hs])
+        for x in hs:
+            _check(x, d)
+        landing = np.where(self.reset_rows[:, None], self.Rcl, expm(self.Acl * d))
+        out = np.empty(hs.size)
+        for a in range(0, hs.size, 256):  # batched matrix exponentials
+            chunk = hs[a : a + 256]
+            flows = expm(self.Acl[None, :, :] * (chunk - d)[:, None, None])
+            out[a : a + chunk.size] = np.max(np.abs(np.linalg.eigvals(flows @ landing)), axis=1)
         return float(out[0]) if scalar else out
 
 

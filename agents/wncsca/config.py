@@ -18,6 +18,7 @@ __all__ = [
     "TestStep",
     "SetpointTest",
     "ModesConfig",
+    "LinksConfig",
     "WncscaConfig",
 ]
 
@@ -87,6 +88,25 @@ class ModesConfig(BaseModel):
         return self
 
 
+class LinksConfig(BaseModel):
+    """How the agent governs the update period of estimates exchanged on the scenario's
+    ``links:`` (controllers of interconnected units, seed 001): by the spectral-radius test of
+    the linearized networked loop (:mod:`agents.update_period`), not by simulation."""
+
+    model_config = _STRICT
+
+    analysis: Literal["spectral_radius"] = Field(
+        default="spectral_radius",
+        description="rho(M_d(h)) < 1 with the links' delay (seed 001 eq. (8), extended to delayed "
+        "updates in agents/update_period/delay.py)",
+    )
+    margin: float = Field(
+        default=0.9, gt=0, lt=1, description="assigned period = margin x the largest allowable one"
+    )
+    h_hi: float = Field(default=0.2, gt=0, description="longest update period scanned, time units")
+    n_grid: int = Field(default=200, ge=10, le=5000, description="periods scanned on (d, h_hi]")
+
+
 class WncscaConfig(BaseModel):
     """The coordination agent (a scenario node of ``kind: agent``)."""
 
@@ -152,6 +172,11 @@ class WncscaConfig(BaseModel):
     )
     confirm: int = Field(
         default=2, ge=1, description="samples beyond the alarm that confirm a fault"
+    )
+    links: LinksConfig | None = Field(
+        default=None,
+        description="govern the update period of the scenario's links (controllers exchanging "
+        "estimates) by the spectral-radius analysis; their loops are then not simulated",
     )
 
     @model_validator(mode="after")

@@ -1,0 +1,174 @@
+"""The agent's update-period governance of controllers that exchange estimates (seed 001).
+
+For loops of this kind (a scenario's ``links:``: controllers of interconnected units with local
+observers and embedded models of their neighbours) the agent does not simulate: it asks the
+controllers' law for the linearized networked loop (``closed_loop()``: flow ``Acl`` and update
+reset ``Rcl``, the same matrices the law runs) and applies the spectral-radius test of
+:mod:`agents.update_period.delay` — seed 001's ``rho(M(h)) < 1`` when the estimates arrive at
+once, its extension to updates landing ``d`` later otherwise. Nothing here knows the plant.
+
+A group is a set of controllers connected by links; all links of a group share one update period
+(as in the paper). Its delay is the largest of its links' delays: the wired ``delay`` of the
+scenario, or the chosen estimate of a gateway's proposal. The agent assigns
+``h = margin x h_max(d)`` (inside the first interval of stabilizing periods, checked), and
+rejects a configuration under which no period stabilizes the group.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agents.update_period.delay import DelayedUpdates, HRange, find_h_range
+from agents.wncsca.config import LinksConfig
+
+__all__ = ["LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
+
+
+@dataclass(frozen=True)
+class LinkGroup:
+    """Controllers joined by links, and their networked loop."""
+
+    name: str
+    controllers: tuple[str, ...]
+    links: tuple[str, ...]
+    system: DelayedUpdates
+
+
+@dataclass(frozen=True)
+class LinkVerdict:
+    """What the analysis says about one group under one delay."""
+
+    group: str
+    verdict: str  # accept | reject
+    delay: float
+    h_min: float
+    h_max: float
+    h: float | None
+    rho: float | None
+    periods: dict[str, float] = field(default_factory=dict)
+    reasons: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        def num(v: float | None) -> float | None:
+            return v if v is not None and math.isfinite(v) else None
+
+        return {
+            "group": self.group,
+            "verdict": self.verdict,
+            "delay": self.delay,
+            "h_min": num(self.h_min),
+            "h_max": num(self.h_max),
+            "h": self.h,
+            "rho": self.rho,
+            "periods": dict(self.periods),
+            "reasons": list(self.reasons),
+        }
+
+
+def link_groups(scenario: Any, build: Any) -> list[LinkGroup]:
+    """The scenario's groups of linked controllers.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        With ``links:`` (each ``from``/``to`` a controller node).
+    build : callable
+        ``build(controller) -> law`` (the law the controller node runs); the law of every
+        controller of a group offers ``closed_loop() -> (Acl, Rcl)``.
+
+    Raises
+    ------
+    ValueError
+        A linked controller whose law offers no ``closed_loop`` (the agent cannot analyse it), or
+        laws of one group that describe different networked loops (their design settings differ).
+    """
+    links = getattr(scenario, "links", None) or {}
+    parent: dict[str, str] = {}
+
+    def find(a: str) -> str:
+        while parent.setdefault(a, a) != a:
+            a = parent[a]
+        return a
+
+    for lk in links.values():
+        parent[find(lk.from_)] = find(lk.to)
+    members: dict[str, list[str]] = {}
+    for c in sorted(parent):
+        members.setdefault(find(c), []).append(c)
+    groups = []
+    for ctrls in sorted(members.values()):
+        system = None
+        for c in ctrls:
+            law = build(c)
+            if not hasattr(law, "closed_loop"):
+                raise ValueError(
+                    f"nodes.{c}.law: type {type(law).__name__} offers no closed_loop(); the agent "
+                    "cannot analyse its links (links governance needs a law such as qdc)"
+                )
+            acl, rcl = law.closed_loop()
+            if system is None:
+                system = DelayedUpdates(np.asarray(acl, float), np.asarray(rcl, float))
+            elif not (
+                np.allclose(acl, system.Acl, rtol=1e-9, atol=1e-12)
+                and np.allclose(rcl, system.Rcl, rtol=1e-9, atol=1e-12)
+            ):
+                raise ValueError(
+                    f"nodes.{c}.law: describes another networked loop than {ctrls[0]}'s; the "
+                    "linked controllers must share the design settings"
+                )
+        names = tuple(sorted(n for n, lk in links.items() if lk.from_ in ctrls or lk.to in ctrls))
+        groups.append(LinkGroup("+".join(ctrls), tuple(ctrls), names, system))
+    return groups
+
+
+def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConfig) -> LinkVerdict:
+    """Accept (and assign the update period) or reject ``group`` with its links' ``delays``."""
+    d = max((float(delays.get(n, 0.0)) for n in group.links), default=0.0)
+    if not d < config.h_hi:
+        return _reject(
+            group, d, f"delay {d:g} is not below the longest period scanned {config.h_hi:g}"
+        )
+    r: HRange = find_h_range(group.system, d, h_hi=config.h_hi, n_grid=config.n_grid)
+    if not r.feasible:
+        return _reject(
+            group,
+            d,
+            f"links {', '.join(group.links)}: no update period in ({d:g}, {config.h_hi:g}] keeps "
+            f"rho(M_d(h)) < 1 with delay {d:g}",
+        )
+    if math.isinf(r.h_max):
+        h = config.h_hi
+        why = f"stable for every period scanned up to {config.h_hi:g}: assigned the longest"
+    else:
+        h = config.margin * r.h_max
+        why = f"h = {config.margin:g} x h_max"
+        if not h > r.h_min:
+            h = 0.5 * (r.h_min + r.h_max)
+            why = "h = middle of the stabilizing interval (margin x h_max is below its start)"
+    rho = float(group.system.spectral_radius(h, d))
+    if not rho < 1.0:  # a window narrower than the scan: say so rather than assign it
+        return _reject(group, d, f"the period found, {h:g}, gives rho = {rho:.4f} >= 1")
+    text = (
+        f"links {', '.join(group.links)}: delay {d:.4g}, stabilizing update periods "
+        f"({r.h_min:.4g}, {r.h_max:.4g}); {why} = {h:.4g} (rho(M) = {rho:.3f})"
+    )
+    return LinkVerdict(
+        group.name,
+        "accept",
+        d,
+        r.h_min,
+        r.h_max,
+        h,
+        rho,
+        {n: h for n in group.links},
+        (text,),
+    )
+
+
+def _reject(group: LinkGroup, d: float, reason: str) -> LinkVerdict:
+    return LinkVerdict(group.name, "reject", d, math.nan, math.nan, None, None, {}, (reason,))

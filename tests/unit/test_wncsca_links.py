@@ -1,0 +1,95 @@
+"""The agent's update-period governance of linked controllers (agents/wncsca/links.py)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from agents.update_period.analysis import CSTRRecycleCase
+from agents.update_period.delay import DelayedUpdates
+from agents.wncsca.config import LinksConfig, WncscaConfig
+from agents.wncsca.links import judge_links, link_groups
+from controllers.qdc import QDCNetwork, closed_loop_matrices
+
+CASE = CSTRRecycleCase()
+H_MAX = CASE.h_max("qdc").h_max
+
+
+class _Law:
+    def __init__(self, delta1: float = 0.0, scheme: str = "model") -> None:
+        net = QDCNetwork(CASE.plant, CASE.gains, model=CASE.model(delta1), scheme=scheme)
+        self.matrices = closed_loop_matrices(CASE.plant, net)
+
+    def closed_loop(self):
+        return self.matrices
+
+
+def _scenario(**links):
+    return SimpleNamespace(links={n: SimpleNamespace(from_=a, to=b) for n, (a, b) in links.items()})
+
+
+def _group(delta1: float = 0.0, scheme: str = "model"):
+    law = _Law(delta1, scheme)
+    (g,) = link_groups(_scenario(x1=("u1", "u2"), x2=("u2", "u1")), lambda c: law)
+    return g
+
+
+def test_groups_join_linked_controllers_and_name_their_links():
+    laws = {c: _Law() for c in ("a", "b", "c", "d")}
+    groups = link_groups(_scenario(l1=("a", "b"), l2=("b", "a"), l3=("c", "d")), lambda c: laws[c])
+    assert [(g.controllers, g.links) for g in groups] == [
+        (("a", "b"), ("l1", "l2")),
+        (("c", "d"), ("l3",)),
+    ]
+
+
+def test_no_delay_assigns_the_margin_times_the_papers_h_max():
+    v = judge_links(_group(), {}, LinksConfig(margin=0.9))
+    assert v.verdict == "accept"
+    assert v.h_max == pytest.approx(H_MAX, abs=1e-7)
+    assert v.h == pytest.approx(0.9 * H_MAX, abs=1e-7)
+    assert v.periods == {"x1": v.h, "x2": v.h}
+    assert v.rho < 1
+    assert "h_max" in v.reasons[0]
+
+
+def test_zero_order_hold_and_mismatch_give_their_own_h_max():
+    for delta1, scheme, arch in ((0.0, "zoh", "qdc_zoh"), (0.3, "model", "qdc")):
+        v = judge_links(_group(delta1, scheme), {}, LinksConfig())
+        assert v.h_max == pytest.approx(CASE.h_max(arch, delta1).h_max, abs=1e-7)
+
+
+def test_a_link_delay_shortens_the_period_and_too_long_a_delay_is_rejected():
+    g = _group()
+    short = judge_links(g, {"x1": 0.002, "x2": 0.005}, LinksConfig())
+    assert short.verdict == "accept" and short.delay == 0.005
+    assert short.h < 0.9 * H_MAX and short.h > 0.005
+    bad = judge_links(g, {"x1": 0.06}, LinksConfig())
+    assert bad.verdict == "reject" and bad.h is None
+    assert "no update period" in bad.reasons[0] and "x1" in bad.reasons[0]
+    assert math.isnan(bad.as_dict()["h_max"] or math.nan)
+
+
+def test_a_law_without_closed_loop_or_with_another_design_is_refused():
+    with pytest.raises(ValueError, match="nodes.u1.law: .*closed_loop"):
+        link_groups(_scenario(x1=("u1", "u2")), lambda c: object())
+    laws = {"u1": _Law(0.0), "u2": _Law(0.3)}
+    with pytest.raises(ValueError, match="nodes.u2.law: describes another networked loop"):
+        link_groups(_scenario(x1=("u1", "u2")), lambda c: laws[c])
+
+
+def test_links_config_is_validated():
+    with pytest.raises(ValidationError, match="margin"):
+        WncscaConfig(links={"margin": 1.5})
+    with pytest.raises(ValidationError, match="analysis"):
+        WncscaConfig(links={"analysis": "simulation"})
+    assert WncscaConfig(links={}).links.margin == 0.9
+
+
+def test_delayed_updates_refuse_mismatched_shapes():
+    with pytest.raises(ValueError, match="square"):
+        DelayedUpdates(np.eye(3), np.eye(2))
