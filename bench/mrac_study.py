@@ -38,6 +38,7 @@ from controllers.mrac import (
     MRACConfig,
     continuous_loop_rhs,
 )
+from controllers.mrac_plots import errors_figure, outputs_figure, states_figure
 from plants.column import (
     APPENDIX_E_A,
     APPENDIX_E_B,
@@ -494,33 +495,19 @@ def plots(out: Path, col_res: dict, test: dict, column_runs: dict) -> list[Path]
         ax[1].set_xlabel("t (h)")
         ax[0].set_title(f"disturbance of the re-drawn plant ({tag})")
         save(fig, f"fig6_2_disturbance_{tag}.png")
-        # Fig. 6.3: states
-        fig, ax = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-        for i in range(2):
-            ax[i].plot(t, r["xm"][:, i], "-", label=f"x_m{i + 1}")
-            ax[i].plot(t, r["x"][:, i], ".", ms=3, label=f"x{i + 1}")
-            ax[i].legend()
+        # Fig. 6.3-6.5: states, outputs, errors (drawn as for platform runs: controllers.mrac_plots)
+        fig = states_figure(t, r["x"], r["xm"], title=f"states ({tag})")
         if tag == "replay":
+            ax = fig.axes
             for k, row in TABLE_G1_ROWS.items():
                 ax[0].plot(k * T_THESIS, row[0], "kx")
                 ax[1].plot(k * T_THESIS, row[1], "kx")
-        ax[1].set_xlabel("t (h)")
         save(fig, f"fig6_3_states_{tag}.png")
-        # Fig. 6.4: outputs
-        fig, ax = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-        for i in range(2):
-            ax[i].plot(t, r["ym"][:, i], "-", label=f"y_m{i + 1}")
-            ax[i].plot(t, r["y"][:, i], ".", ms=3, label=f"y{i + 1}")
-            ax[i].legend()
-        ax[1].set_xlabel("t (h)")
-        save(fig, f"fig6_4_outputs_{tag}.png")
-        # Fig. 6.5: errors
-        fig, ax = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-        for i in range(2):
-            ax[i].plot(t, r["e"][:, i], "-o", ms=2)
-            ax[i].set_ylabel(f"e{i + 1}")
-        ax[1].set_xlabel("t (h)")
-        save(fig, f"fig6_5_errors_{tag}.png")
+        save(
+            outputs_figure(t, r["y"], r["ym"], title=f"outputs ({tag})"),
+            f"fig6_4_outputs_{tag}.png",
+        )
+        save(errors_figure(t, r["e"], title=f"state errors ({tag})"), f"fig6_5_errors_{tag}.png")
 
     # error RMS against gamma
     fig, ax = plt.subplots(figsize=(6, 4))

@@ -258,7 +258,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if (out / "history.sqlite").exists() and "messages" in old:
         rec.dropped_invalid = old["messages"].get("dropped_invalid", {})
     summary = write_summary(rec, out)
-    paths = write_plots(rec, out)
+    paths = write_plots(rec, out, scenario=scenario)
     print(_table(summary))
     if "wncsca" in summary:
         from agents.wncsca.timeline import format_timeline

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from runtime.record import RunRecord, summarize
 from runtime.time import to_units
+
+if TYPE_CHECKING:
+    from runtime.scenario import Scenario
 
 __all__ = [
     "SUMMARY_FILE",
     "RECORD_FILE",
     "write_summary",
     "write_plots",
+    "law_figures",
     "save_record",
     "load_saved_record",
 ]
@@ -70,8 +74,13 @@ def load_saved_record(out: Path) -> RunRecord:
     return rec
 
 
-def write_plots(rec: RunRecord, out: Path) -> list[Path]:
-    """One PNG per loop: the true output and its set point against time, and the control moves."""
+def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) -> list[Path]:
+    """Write the run's plots and return their paths.
+
+    One PNG per loop: the true output and its set point against time, and the control moves;
+    the coordination agent's figures when it ran; and, given the ``scenario``, the figures of
+    every multi-loop controller whose law registers some (:func:`law_figures`).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -80,6 +89,8 @@ def write_plots(rec: RunRecord, out: Path) -> list[Path]:
     paths = []
     unit = rec.time_unit
     for name, loop in sorted(rec.loops.items()):
+        if loop.sensor is None:
+            continue  # an actuator-only loop: no output to plot
         t, y = rec.plants[loop.plant].signal(loop.sensor)
         sp_t = [to_units(v) for v, _ in loop.setpoints] + [to_units(rec.end_time)]
         sp_v = [v for _, v in loop.setpoints]
@@ -112,4 +123,48 @@ def write_plots(rec: RunRecord, out: Path) -> list[Path]:
         paths += run_plots(
             wncsca_summary(rec.wncsca), out, unit=unit, end_time=to_units(rec.end_time)
         )
+    if scenario is not None:
+        paths += law_figures(rec, scenario, out)
+    return paths
+
+
+def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
+    """The figures of the laws of ``scenario``'s multi-loop controllers, from the run's record.
+
+    For every multi-loop controller whose law registers a figure function
+    (:data:`controllers.law_plots.LAW_FIGURES`), its executions are rebuilt from ``rec``
+    (:func:`runtime.direct.multi_loop_executions`) and the law draws its own signals over them;
+    figure ``key`` of controller ``name`` is saved as ``<law type>_<name>_<key>.png`` (for the
+    MRAC: ``mrac_<name>_states.png``, ``_outputs``, ``_errors``, ``_theta``).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from controllers.law_plots import figures_of
+    from runtime.direct import multi_loop_executions
+
+    paths = []
+    for name, cfg in sorted(scenario.nodes.items()):
+        if cfg.kind != "controller" or cfg.loops is None:
+            continue
+        draw = figures_of(cfg.law)
+        if draw is None:
+            continue
+        executions = [
+            (to_units(ex.t), ex.y, ex.r) for ex in multi_loop_executions(scenario, rec, name)
+        ]
+        figs = draw(
+            cfg.law,
+            list(cfg.loops),
+            executions,
+            title=f"{rec.scenario}: {name} ({rec.engine} engine)",
+            unit=rec.time_unit,
+        )
+        for key, fig in figs.items():
+            path = out / f"{cfg.law.type}_{name}_{key}.png"
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+            paths.append(path)
     return paths
