@@ -6,6 +6,7 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 from bus_schemas.bodies import (
     Decision,
     Done,
+    Estimate,
     InjectRequest,
     Loss,
     ModeRequest,
@@ -33,6 +34,7 @@ __all__ = [
     "Envelope",
     "Decision",
     "Done",
+    "Estimate",
     "InjectRequest",
     "Loss",
     "ModeRequest",

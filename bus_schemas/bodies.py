@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 __all__ = [
     "Sample",
     "Move",
+    "Estimate",
     "Setpoint",
     "PlantState",
     "Loss",
@@ -68,6 +69,23 @@ class Move(BaseModel):
     _check_value = field_validator("value")(_finite)
 
 
+class Estimate(BaseModel):
+    """What a controller's law transmits on a link (``link/<k>/tx``) and the network delivers
+    (``link/<k>/rx``): seed 001's state estimate of a unit, in the law's own units."""
+
+    model_config = _FROZEN
+
+    values: tuple[float, ...] = Field(min_length=1, description="the transmitted vector")
+    t_sent: int = Field(ge=0, strict=True, description="time it was transmitted, ticks")
+
+    @field_validator("values")
+    @classmethod
+    def _finite_values(cls, values: tuple[float, ...]) -> tuple[float, ...]:
+        for v in values:
+            _finite(v)
+        return values
+
+
 class Setpoint(BaseModel):
     """A new set point of one loop: requested by operations (``ops/setpoint/<loop>``) or, when a
     coordination agent governs the loops, passed on by it to the controllers (``loop/<l>/sp``)."""
@@ -113,8 +131,8 @@ class Loss(BaseModel):
 
     model_config = _FROZEN
 
-    loop: str
-    direction: Literal["sensor", "actuator"]
+    loop: str = Field(description="the loop, or the link for direction 'link'")
+    direction: Literal["sensor", "actuator", "link"]
     t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
 
 
@@ -238,12 +256,19 @@ class Rates(BaseModel):
     energy: dict | None = Field(
         default=None, description="projected network lifetime, assigned vs benchmark periods"
     )
+    link_periods: dict[str, int] = Field(
+        default_factory=dict,
+        description="link -> update period h, ticks (the sending controller applies it)",
+    )
 
     @model_validator(mode="after")
     def _positive(self) -> Rates:
         for loop, period in {**self.periods, **self.control_periods}.items():
             if period <= 0:
                 raise ValueError(f"periods.{loop}: must be > 0 ticks, got {period}")
+        for link, period in self.link_periods.items():
+            if period <= 0:
+                raise ValueError(f"link_periods.{link}: must be > 0 ticks, got {period}")
         return self
 
 

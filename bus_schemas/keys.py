@@ -27,6 +27,8 @@ __all__ = [
     "plant_state",
     "meas",
     "move",
+    "link_tx",
+    "link_rx",
     "setpoint",
     "setpoint_all",
     "net_lost",
@@ -123,6 +125,16 @@ def meas(loop: str) -> str:
 def move(loop: str) -> str:
     """Controller output, before the network."""
     return f"loop/{check_name(loop, 'loop')}/u"
+
+
+def link_tx(link: str) -> str:
+    """What a controller transmits on a link, before the network."""
+    return f"link/{check_name(link, 'link')}/tx"
+
+
+def link_rx(link: str) -> str:
+    """What the network delivers on a link to the receiving controller."""
+    return f"link/{check_name(link, 'link')}/rx"
 
 
 def inject() -> str:

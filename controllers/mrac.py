@@ -580,11 +580,17 @@ class MultiLoopMRAC:
 
     @classmethod
     def from_config(
-        cls, config: MRACConfig, *, loops: Sequence[str], plant: object, tau_s: float
+        cls,
+        config: MRACConfig,
+        *,
+        loops: Sequence[str],
+        plant: object,
+        tau_s: float,
+        context: object = None,
     ) -> MultiLoopMRAC:
-        """Build from the scenario (the plant and sampling period are not used: the MRAC is
-        designed from its reference model and nominal plant, and uses the actual time between
-        executions)."""
+        """Build from the scenario (the plant, sampling period and context are not used: the
+        MRAC is designed from its reference model and nominal plant, and uses the actual time
+        between executions)."""
         return cls(config, loops)
 
     def reset(self) -> None:

@@ -28,17 +28,31 @@ arrive: then once for the delayed samples and once more for the zero-delay ones.
 engine executes exactly the same way. The set point of each loop is the law's reference input
 (for the MRAC, ``u_c``; :class:`controllers.mrac.MultiLoopMRAC`). A coordination agent does not
 govern multi-loop controllers (refused when the scenario loads).
+
+An **actuator-only** loop (``sensor: null``, for laws that move inputs they do not measure, such
+as seed 001's units: :mod:`controllers.qdc_law`) has no samples: the hold rule waits only for the
+loops with a sensor, ``y`` has no entry for it, and the law's move for it is published on its
+``loop/<l>/u`` like the others.
+
+**Links** (the scenario's ``links:``): the node transmits what its law's ``transmit(t)`` returns
+on ``link/<k>/tx`` for every link it sends on, every ``period`` from ``t = 0`` (a timer, so in
+the first round of its instant, before anything is received or executed there); what arrives on
+``link/<k>/rx`` is handed to ``law.receive(t, link, values)`` as the message is dispatched (in
+key order), so within a round receipts come before the execution on that round's samples. A
+period assigned at run time (``wncsca/rates``, ``link_periods``) takes effect at once: the next
+transmission is one new period after the last, or now if that has passed. A received vector
+the law refuses (``ValueError``, e.g. the wrong length) is dropped and counted as invalid input.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-from bus_schemas import Move, Rates, Sample, Setpoint, keys
+from bus_schemas import Estimate, Move, Rates, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
 from controllers.registry import build_law, build_multi_loop_law, uses_feedforward
 from runtime.node import Node, NodeContext
-from runtime.time import to_units
+from runtime.time import to_ticks, to_units
 
 __all__ = ["ControllerNode"]
 
@@ -60,14 +74,31 @@ class ControllerNode(Node):
         self._samples: list[Sample] = []
         self._setpoints_changed = False
         plant = self.scenario.nodes[loop.plant].build()
+        self._link_periods: dict[str, int] = {}
         if self.multi:
             self.feedforward = None
-            tau_s = min(self.scenario.loops[n].tau_s for n in self.loops)
-            self.law = build_multi_loop_law(cfg.law, loops=self.loops, plant=plant, tau_s=tau_s)
+            self.law = build_multi_loop_law(
+                cfg.law,
+                loops=self.loops,
+                plant=plant,
+                tau_s=self.scenario.multi_loop_tau_s(self.name),
+                context=self.scenario.multi_loop_context(self.name),
+            )
             self._held: dict[str, tuple[int, float]] = {}  # loop -> (t_sampled, value)
             self._arrived: list[tuple[str, Sample]] = []
-            for name in self.loops:
+            self._measured = [n for n in self.loops if self.scenario.loops[n].sensor is not None]
+            for name in self._measured:
                 self.subscribe(keys.meas(name), Sample, self._on_meas_of(name))
+            self._end = to_ticks(self.scenario.end_time)
+            self._last_sent: dict[str, int] = {}
+            self._generation: dict[str, int] = {}
+            for name, link in sorted(self.scenario.links.items()):
+                if link.from_ == self.name:
+                    self._link_periods[name] = to_ticks(link.period)
+                    self._generation[name] = 0
+                    self.at(0, self._sender(name, 0))
+                if link.to == self.name:
+                    self.subscribe(keys.link_rx(name), Estimate, self._on_estimate(name))
         else:
             self.feedforward = (
                 self.scenario.feedforward(self.loop) if uses_feedforward(cfg.law) else None
@@ -98,7 +129,51 @@ class ControllerNode(Node):
 
         return handle
 
+    def _sender(self, link: str, generation: int) -> Callable[[], None]:
+        """Transmit on ``link`` now and schedule the next transmission a period later (unless
+        a new period has rescheduled the link since: then this timer is stale)."""
+
+        def send() -> None:
+            if generation != self._generation[link]:
+                return
+            values = self.law.transmit(to_units(self.now))
+            self.publish(keys.link_tx(link), Estimate(values=tuple(values), t_sent=self.now))
+            self._last_sent[link] = self.now
+            nxt = self.now + self._link_periods[link]
+            if nxt <= self._end:
+                self.at(nxt, self._sender(link, generation))
+
+        return send
+
+    def _on_estimate(self, link: str) -> Callable[[RawEnvelope, Estimate], None]:
+        def handle(env: RawEnvelope, msg: Estimate) -> None:
+            try:
+                self.law.receive(to_units(self.now), link, list(msg.values))
+            except ValueError as err:
+                self._reject(self.current_key, f"{env.src}#{env.seq}: {err}")
+
+        return handle
+
+    def _set_link_period(self, link: str, period: int) -> None:
+        """Transmit on ``link`` every ``period`` ticks from now on (see the module docstring)."""
+        if period == self._link_periods[link]:
+            return
+        self.log.info("link %s: period %s -> %s ticks", link, self._link_periods[link], period)
+        self._link_periods[link] = period
+        self._generation[link] += 1
+        last = self._last_sent.get(link)
+        nxt = self.now if last is None else max(last + period, self.now)
+        if last == self.now:
+            nxt = self.now + period  # sent in this instant already
+        if nxt <= self._end:
+            self.at(nxt, self._sender(link, self._generation[link]))
+
     def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
+        for link, period in sorted(rates.link_periods.items()):
+            if link in self._link_periods:
+                self._set_link_period(link, period)
+        if self.multi:
+            return  # loops of multi-loop controllers are not opened or closed by the agent
         closed = rates.closed.get(self.loop, True)
         if closed and not self.closed:
             self.law.resume(to_units(self.now))
@@ -128,9 +203,9 @@ class ControllerNode(Node):
             if held is None or sample.t_sampled >= held[0]:
                 self._held[loop] = (sample.t_sampled, sample.value)
         self._arrived.clear()
-        if len(self._held) < len(self.loops):
+        if len(self._held) < len(self._measured):
             return  # some loop has not delivered yet: no move
-        y = {n: self._held[n][1] for n in self.loops}
+        y = {n: self._held[n][1] for n in self._measured}
         r = {n: self.setpoints[n] for n in self.loops}
         u = self.law.step(to_units(self.now), y, r)
         for name in self.loops:

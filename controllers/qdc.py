@@ -61,11 +61,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 from scipy.linalg import block_diag, expm
 
 from plants.integrate import rk4
@@ -80,7 +80,11 @@ __all__ = [
     "PAPER_OBSERVER_POLES",
     "observer_gain",
     "QDCNetwork",
+    "LocalQDC",
     "CentralizedNetwork",
+    "check_poles",
+    "ControllerPoles",
+    "ObserverPoles",
     "LinearRun",
     "NonlinearRun",
     "closed_loop_matrices",
@@ -187,7 +191,8 @@ class LinearUnits(BaseModel):
         return A, B, C
 
 
-def _check_poles(name: str, poles: tuple[tuple[float, ...], ...]) -> None:
+def check_poles(name: str, poles: tuple[tuple[float, ...], ...]) -> None:
+    """Refuse (``ValueError`` naming ``name[i][k]``) a pole that is not real and negative."""
     for i, unit in enumerate(poles):
         for k, pole in enumerate(unit):
             if not pole < 0.0:
@@ -196,20 +201,33 @@ def _check_poles(name: str, poles: tuple[tuple[float, ...], ...]) -> None:
                 )
 
 
+def _stable_poles(name: str, poles: tuple[tuple[float, ...], ...]) -> tuple[tuple[float, ...], ...]:
+    check_poles(name, poles)
+    return poles
+
+
+ControllerPoles = Annotated[
+    tuple[tuple[float, ...], ...],
+    Field(description="eigenvalues of Abar_i = A_i + B_i K_i, one tuple per unit (real, < 0)"),
+    AfterValidator(lambda v: _stable_poles("controller_poles", v)),
+]
+"""Design poles of the local controllers (validated: real and negative)."""
+ObserverPoles = Annotated[
+    tuple[tuple[float, ...], ...],
+    Field(description="eigenvalues of A_i - L_i C_i, one tuple per unit (real, < 0)"),
+    AfterValidator(lambda v: _stable_poles("observer_poles", v)),
+]
+"""Design poles of the local observers (validated: real and negative)."""
+
+
 class QDCDesign(BaseModel):
     """Controller and observer design of seed 001 section V (see the module docstring)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     plant: LinearUnits
-    controller_poles: tuple[tuple[float, ...], ...] = Field(
-        default=PAPER_CONTROLLER_POLES,
-        description="eigenvalues of Abar_i = A_i + B_i K_i, one tuple per unit (real, < 0)",
-    )
-    observer_poles: tuple[tuple[float, ...], ...] = Field(
-        default=PAPER_OBSERVER_POLES,
-        description="eigenvalues of A_i - L_i C_i, one tuple per unit (real, < 0)",
-    )
+    controller_poles: ControllerPoles = PAPER_CONTROLLER_POLES
+    observer_poles: ObserverPoles = PAPER_OBSERVER_POLES
     controller_method: Literal["diagonal", "place"] = Field(
         default="diagonal",
         description="diagonal: Abar_i = diag(controller_poles[i]); place: scipy place_poles",
@@ -218,18 +236,6 @@ class QDCDesign(BaseModel):
         default=True,
         description="K_ij = -B_i^-1 A_ij so that Abar_ij = O (else K_ij = O, decentralized)",
     )
-
-    @field_validator("controller_poles")
-    @classmethod
-    def _controller_poles_stable(cls, v: tuple[tuple[float, ...], ...]) -> Any:
-        _check_poles("controller_poles", v)
-        return v
-
-    @field_validator("observer_poles")
-    @classmethod
-    def _observer_poles_stable(cls, v: tuple[tuple[float, ...], ...]) -> Any:
-        _check_poles("observer_poles", v)
-        return v
 
     @model_validator(mode="after")
     def _consistent(self) -> QDCDesign:
@@ -517,6 +523,40 @@ class QDCNetwork(_LinearNetworkedController):
                     rx[sl, self._x_off[j] : self._x_off[j + 1]] = np.eye(self.plant.p[j])
         return self.R.copy(), rx
 
+    def local(self, i: int) -> LocalQDC:
+        """Unit ``i``'s local control system alone: its block of ``F``, ``G``, ``H``.
+
+        ``F`` is block diagonal by unit (a unit's observer and embedded models use only its own
+        measurement and states), so the stacked controller is exactly the ``n`` local ones side
+        by side; the platform's ``qdc`` law (:mod:`controllers.qdc_law`) runs this block.
+
+        Raises
+        ------
+        ValueError
+            For the state-feedback structure (its local controller has no observer to transmit).
+        """
+        xb = self._xbar[i]
+        if xb is None:
+            raise ValueError("QDCNetwork.local: only the output-feedback structure has estimates")
+        stop = max([xb.stop, *(s.stop for s in self._xhat[i].values())])
+        block = slice(xb.start, stop)
+        q = [self.plant.c(k).shape[0] for k in range(self.plant.n)]
+        r = [self.plant.b(k).shape[1] for k in range(self.plant.n)]
+        ms = slice(sum(q[:i]), sum(q[: i + 1]))
+        us = slice(sum(r[:i]), sum(r[: i + 1]))
+        F = self.F[block, block].copy()
+        outside = np.delete(self.F[block, :], np.arange(block.start, block.stop), axis=1)
+        if np.any(outside):
+            raise ValueError(f"QDCNetwork.local: unit {i}'s controller is not a block of F")
+        shift = block.start
+        return LocalQDC(
+            F=F,
+            G=self.G[block, ms].copy(),
+            H=self.H[us, block].copy(),
+            xbar=slice(xb.start - shift, xb.stop - shift),
+            xhat={j: slice(s.start - shift, s.stop - shift) for j, s in self._xhat[i].items()},
+        )
+
     def estimates(self, z: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         """The local observer estimates ``xbar_i`` (output feedback)."""
         return [z[s] for s in self._xbar if s is not None]
@@ -532,6 +572,27 @@ class QDCNetwork(_LinearNetworkedController):
             for j, sl in self._xhat[i].items():
                 z[sl] = xbar0[self._x_off[j] : self._x_off[j + 1]]
         return z
+
+
+@dataclass(frozen=True)
+class LocalQDC:
+    """One unit's local control system of eq. (4) (:meth:`QDCNetwork.local`).
+
+    ``dz/dt = F z + G y_i``, ``u_i = H z`` (deviation variables); ``z[xbar]`` is the unit's
+    observer estimate ``xbar_i`` (what it transmits), ``z[xhat[j]]`` its model ``xhat_j^i`` of
+    unit ``j`` (reset to ``xbar_j`` when unit ``j``'s estimate arrives).
+    """
+
+    F: NDArray[np.float64]
+    G: NDArray[np.float64]
+    H: NDArray[np.float64]
+    xbar: slice
+    xhat: dict[int, slice]
+
+    @property
+    def nz(self) -> int:
+        """Number of controller states."""
+        return self.F.shape[0]
 
 
 class CentralizedNetwork(_LinearNetworkedController):

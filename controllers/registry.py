@@ -9,12 +9,18 @@ A **multi-loop** law (class attribute ``multi_loop = True``) controls several lo
 controller node with ``loops: [a, b, ...]``): its ``step(t, y, r) -> u`` takes the latest
 measurement and the set point of every loop by name (``dict[str, float]``) and returns a move for
 every loop; it may have a static ``check_loops(config, loops)`` that refuses a loop list
-(``ValueError``) and a classmethod ``from_config(config, *, loops, plant, tau_s)``.
+(``ValueError``) and a classmethod ``from_config(config, *, loops, plant, tau_s, context)``
+(``context``: :class:`MultiLoopContext`, the loops' signals and the controller's links). A law
+with ``actuator_only_loops = True`` accepts loops without a sensor (``sensor: null``: it moves
+their input, and ``y`` has no entry for them). A law that exchanges data with other controllers
+over the scenario's ``links:`` has ``transmit(t) -> list[float]`` (what it sends on its links)
+and ``receive(t, link, values)`` (what arrived on one).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
@@ -23,10 +29,14 @@ from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
 from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
 from controllers.pi import PI, PIConfig
+from controllers.qdc_law import QDCLaw, QDCLawConfig
 
 __all__ = [
     "LAWS",
     "LawConfig",
+    "MultiLoopContext",
+    "accepts_actuator_only_loops",
+    "exchanges_estimates",
     "build_law",
     "build_multi_loop_law",
     "check_loops",
@@ -40,12 +50,43 @@ LAWS: dict[str, type[Any]] = {
     "pi2dof": TwoDofPI,  # seed 002: fixed-gain 2-DOF PI (the baseline)
     "stnlpi": SelfTuningNLPI,  # seed 002: EW-RLS self-tuning non-linear PI
     "mrac": MultiLoopMRAC,  # seed 003: model-reference adaptive control (multi-loop)
+    "qdc": QDCLaw,  # seed 001: a unit's quasi-decentralized local control system (multi-loop)
 }
 
 LawConfig = Annotated[
-    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig | MRACConfig, Field(discriminator="type")
+    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig | MRACConfig | QDCLawConfig,
+    Field(discriminator="type"),
 ]
 """The discriminated union of every law's configuration (``PIConfig | OtherConfig | ...``)."""
+
+
+@dataclass(frozen=True)
+class MultiLoopContext:
+    """What a multi-loop law may need from the scenario besides its configuration.
+
+    Attributes
+    ----------
+    signals : mapping
+        Loop -> ``(sensor, actuator)``: the plant output it measures (``None`` for an
+        actuator-only loop) and the input it moves.
+    sends, receives : tuple of str
+        The links (``links:``) the controller transmits on and receives, by name.
+    """
+
+    signals: Mapping[str, tuple[str | None, str]] = field(default_factory=dict)
+    sends: tuple[str, ...] = ()
+    receives: tuple[str, ...] = ()
+
+
+def accepts_actuator_only_loops(config: BaseModel) -> bool:
+    """Whether the law of ``config`` accepts loops without a sensor (``sensor: null``)."""
+    return bool(getattr(LAWS[config.type], "actuator_only_loops", False))  # type: ignore[attr-defined]
+
+
+def exchanges_estimates(config: BaseModel) -> bool:
+    """Whether the law of ``config`` sends and receives on links (``transmit``/``receive``)."""
+    cls = LAWS[config.type]  # type: ignore[attr-defined]
+    return hasattr(cls, "transmit") and hasattr(cls, "receive")
 
 
 def uses_feedforward(config: BaseModel) -> bool:
@@ -86,7 +127,12 @@ def build_law(config: BaseModel, *, u_bar: float, plant: Any, tau_s: float) -> A
 
 
 def build_multi_loop_law(
-    config: BaseModel, *, loops: Sequence[str], plant: Any, tau_s: float
+    config: BaseModel,
+    *,
+    loops: Sequence[str],
+    plant: Any,
+    tau_s: float,
+    context: MultiLoopContext | None = None,
 ) -> Any:
     """The law object of a multi-loop ``config`` for the loops ``loops`` (in that order).
 
@@ -100,10 +146,13 @@ def build_multi_loop_law(
         The plant model of the first loop, for laws designed from its parameters.
     tau_s : float
         The shortest nominal sampling period of the loops.
+    context : MultiLoopContext, optional
+        The loops' signals and the controller's links
+        (:meth:`runtime.scenario.Scenario.multi_loop_context`).
     """
     cls = LAWS[config.type]  # type: ignore[attr-defined]
     if not getattr(cls, "multi_loop", False):
         raise ValueError(f"law {config.type!r} controls one loop; use build_law")  # type: ignore[attr-defined]
     if hasattr(cls, "from_config"):
-        return cls.from_config(config, loops=loops, plant=plant, tau_s=tau_s)
+        return cls.from_config(config, loops=loops, plant=plant, tau_s=tau_s, context=context)
     return cls(config, loops)

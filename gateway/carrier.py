@@ -9,6 +9,11 @@ by the node its ``network:`` names:
   (:func:`gateway.paths.deliver`); the actuator path goes back from the gateway to the loop's
   ``actuator_node`` the same way, or is wired (``tau_a``) when the loop names none.
 
+An actuator-only loop (``sensor: null``) has no sensor path. A **link** (the scenario's
+``links:``, data from one controller to another) naming the node is carried like a sensor path:
+a constant ``delay`` over a wired network, or routed over the topology from its ``source_node``
+to its ``dest_node`` (path ``<link>.link``).
+
 Every path draws from its own generator, seeded from the scenario seed, the network node's name,
 the loop and the direction, so the draws do not depend on the order in which engines handle
 paths, and the bus engines and the direct engine deliver identical packets at identical times.
@@ -28,9 +33,11 @@ from gateway.paths import Route, deliver
 from gateway.topology import Topology
 from runtime.time import to_ticks
 
-__all__ = ["PathCarrier", "path_hops", "SENSOR", "ACTUATOR"]
+__all__ = ["PathCarrier", "path_hops", "SENSOR", "ACTUATOR", "LINK"]
 
-SENSOR, ACTUATOR = "sensor", "actuator"
+SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
+_STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
+_PING_STREAM = {SENSOR: 2, ACTUATOR: 3, LINK: 5}  # and of its ping probes
 
 
 class PathCarrier:
@@ -49,6 +56,7 @@ class PathCarrier:
         self.node = node
         self.kind = cfg.kind
         self.loops = {n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == node}
+        self.links = {n: lk for n, lk in sorted(scenario.links.items()) if lk.network == node}
         self._rng: dict[tuple[str, str], np.random.Generator] = {}
         self._const: dict[tuple[str, str], int] = {}
         self.routes: dict[tuple[str, str], Route | None] = {}
@@ -56,29 +64,38 @@ class PathCarrier:
         if cfg.kind == "gateway":
             topology = Topology(cfg.topology)
             gateway = cfg.gateway_node()
+        paths = [(n, d) for n in self.loops for d in (SENSOR, ACTUATOR)]
+        for name, direction in [*paths, *((n, LINK) for n in self.links)]:
+            self._rng[name, direction] = np.random.default_rng(
+                [
+                    scenario.seed,
+                    zlib.crc32(node.encode()),
+                    zlib.crc32(name.encode()),
+                    _STREAM[direction],
+                ]
+            )
+        for name, link in self.links.items():
+            if topology is None:
+                self._const[name, LINK] = to_ticks(link.delay)
+                continue
+            topology.add_path(f"{name}.link", link.source_node, link.dest_node)
+            self.routes[name, LINK] = topology.routes()[f"{name}.link"]
         for name, loop in self.loops.items():
-            for direction in (SENSOR, ACTUATOR):
-                self._rng[name, direction] = np.random.default_rng(
-                    [
-                        scenario.seed,
-                        zlib.crc32(node.encode()),
-                        zlib.crc32(name.encode()),
-                        0 if direction == SENSOR else 1,
-                    ]
-                )
             if topology is None:
                 self._const[name, SENSOR] = to_ticks(loop.tau_d)
                 self._const[name, ACTUATOR] = to_ticks(loop.tau_a)
                 continue
-            topology.add_path(f"{name}.sensor", loop.sensor_node, gateway)
-            self.routes[name, SENSOR] = topology.routes()[f"{name}.sensor"]
+            if loop.sensor is not None:
+                topology.add_path(f"{name}.sensor", loop.sensor_node, gateway)
+                self.routes[name, SENSOR] = topology.routes()[f"{name}.sensor"]
             if loop.actuator_node is None:
                 self._const[name, ACTUATOR] = to_ticks(loop.tau_a)
             else:
                 topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
                 self.routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
         self.topology = topology
-        self.periods = {n: lp.tau_s for n, lp in self.loops.items()}
+        self.periods = {n: lp.tau_s for n, lp in self.loops.items() if lp.tau_s is not None}
+        self.link_periods = {n: lk.period for n, lk in self.links.items()}
         self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
         self.stamps = {path: TimestampEstimator() for path in self.routes}
         # what each routed path carried: (t_ready, t_deliver or None), for net/stats
@@ -92,7 +109,7 @@ class PathCarrier:
                     scenario.seed,
                     zlib.crc32(node.encode()),
                     zlib.crc32(path[0].encode()),
-                    2 if path[1] == SENSOR else 3,
+                    _PING_STREAM[path[1]],
                 ]
             )
             for path in self.routes
@@ -191,8 +208,9 @@ class PathCarrier:
         if self.meter is None or self.topology is None:
             return {}
         self.meter.advance(t)
-        routes = {f"{lp}.{d}": r for (lp, d), r in self.routes.items() if d == SENSOR}
+        routes = {f"{lp}.{d}": r for (lp, d), r in self.routes.items() if d in (SENSOR, LINK)}
         periods = {f"{lp}.{d}": self.periods[lp] for (lp, d) in self.routes if d == SENSOR}
+        periods.update({f"{n}.{d}": self.link_periods[n] for (n, d) in self.routes if d == LINK})
         projected = projected_lifetime(
             self.topology, routes, periods, self.meter.config, self.meter
         )
@@ -206,14 +224,18 @@ class PathCarrier:
         }
 
     def hops(self, loop: str, direction: str = SENSOR) -> int:
-        """Hops of a path (0 for a wired path; -1 when the path is down)."""
+        """Hops of a path (0 for a wired path or a loop without a sensor; -1 when the path is
+        down)."""
         if (loop, direction) in self._const:
             return 0
-        route = self.routes[loop, direction]
+        route = self.routes.get((loop, direction), self)
+        if route is self:
+            return 0  # an actuator-only loop over a gateway: no sensor path
         return -1 if route is None else route.n_hops
 
     def deliver(self, loop: str, direction: str, t_ready: int) -> int | None:
-        """Delivery time (ticks) of a packet ready at ``t_ready``; ``None`` if it is lost."""
+        """Delivery time (ticks) of a packet ready at ``t_ready``; ``None`` if it is lost.
+        ``loop`` is the link's name for ``direction == LINK``."""
         const = self._const.get((loop, direction))
         if const is not None:
             return t_ready + const

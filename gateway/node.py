@@ -2,8 +2,9 @@
 (``kind: gateway``).
 
 Sensor samples (``plant/<p>/sensor/<s>``) are delivered on ``loop/<l>/meas``; control moves
-(``loop/<l>/u``) on ``plant/<p>/actuator/<i>``. When a packet arrives, its delivery time comes from
-:class:`gateway.carrier.PathCarrier` (constant delays, or per-hop delays with retries and loss
+(``loop/<l>/u``) on ``plant/<p>/actuator/<i>``; what a controller transmits on a link
+(``link/<k>/tx``) is delivered on ``link/<k>/rx``. When a packet arrives, its delivery time comes
+from :class:`gateway.carrier.PathCarrier` (constant delays, or per-hop delays with retries and loss
 drawn from the path's own seeded generator); a lost packet is reported on ``net/lost`` and never
 delivered. A delivery due now is published in this round (a microstep), a later one is a timer,
 so in real-time mode delays pass in wall time through the same clock.
@@ -25,6 +26,7 @@ from typing import Any
 
 from bus_schemas import (
     Decision,
+    Estimate,
     Loss,
     Move,
     NetApplied,
@@ -37,7 +39,7 @@ from bus_schemas import (
     keys,
 )
 from bus_schemas.envelope import RawEnvelope
-from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
+from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier
 from runtime.node import Node, NodeContext
 from runtime.time import to_ticks, to_units
 
@@ -53,7 +55,9 @@ class NetworkNode(Node):
         self._awaiting: tuple[int, str, str, dict] | None = None  # id, event, source, paths
         self._paths: dict = {}
         self._alternatives: Any = None
-        self._periods = {n: to_ticks(lp.tau_s) for n, lp in self.carrier.loops.items()}
+        self._periods = {
+            n: to_ticks(lp.tau_s) for n, lp in self.carrier.loops.items() if lp.tau_s is not None
+        }
         if self.carrier.topology is not None:
             self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
@@ -71,16 +75,20 @@ class NetworkNode(Node):
         if self.governed and self.carrier.loops:
             self.subscribe(keys.wncsca_rates(), Rates, self._on_rates)
         for name, loop in self.carrier.loops.items():
-            self.subscribe(
-                keys.sensor(loop.plant, loop.sensor),
-                Sample,
-                self._path(name, SENSOR, keys.meas(name)),
-            )
+            if loop.sensor is not None:
+                self.subscribe(
+                    keys.sensor(loop.plant, loop.sensor),
+                    Sample,
+                    self._path(name, SENSOR, keys.meas(name)),
+                )
             self.subscribe(
                 keys.move(name),
                 Move,
                 self._path(name, ACTUATOR, keys.actuator(loop.plant, loop.actuator)),
             )
+
+        for name in self.carrier.links:
+            self.subscribe(keys.link_tx(name), Estimate, self._path(name, LINK, keys.link_rx(name)))
 
     def _announce(self, kind: str, source: str, event: Any) -> Any:
         def apply() -> None:
@@ -139,6 +147,8 @@ class NetworkNode(Node):
     def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
         changed = {}
         for name, loop in self.carrier.loops.items():
+            if loop.sensor is None:
+                continue
             period = rates.periods.get(name)
             if period is None or period == self._periods[name]:
                 continue

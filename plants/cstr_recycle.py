@@ -145,6 +145,12 @@ class CSTRRecycle:
     state_names: tuple[str, ...] = ("T1", "CA1", "T2", "CA2")
     input_names: tuple[str, ...] = ("Q1", "CA0", "Q2", "CA03")
     output_names: tuple[str, ...] = ("T1", "T2")
+    units: tuple[tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]], ...] = (
+        (("T1", "CA1"), ("Q1", "CA0"), ("T1",)),
+        (("T2", "CA2"), ("Q2", "CA03"), ("T2",)),
+    )
+    """The units of eq. (11) by name: ``(states, inputs, outputs)`` of each reactor (the
+    decomposition :meth:`two_unit` uses; a networked law designs its local controllers on it)."""
 
     def __init__(self, params: CSTRRecycleParams = PAPER_PARAMS) -> None:
         self.params = params
@@ -284,6 +290,11 @@ class CSTRRecycle:
     def unstable_steady_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The open-loop unstable steady state of section V (``Q1 = Q2 = 0``, nominal feeds)."""
         return self.equilibrium((457.9, 1.77, 415.5, 1.75))
+
+    def operating_point(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The point a controller designed on the linearization regulates to: for this plant the
+        unstable steady state of section V (:meth:`unstable_steady_state`)."""
+        return self.unstable_steady_state()
 
     # -- linearization --------------------------------------------------------------------------
     def jacobians(

@@ -49,6 +49,8 @@ class PlantNode(Node):
         self._last_sample: dict[str, int] = {}
         self._generation: dict[str, int] = {}
         for loop in self.scenario.loops_of_plant(self.name).values():
+            if loop.sensor is None:
+                continue  # an actuator-only loop: nothing to sample
             self.periods[loop.sensor] = to_ticks(loop.tau_s)
             self._generation[loop.sensor] = 0
             self.at(0, self._sampler(loop.sensor, 0))

@@ -25,6 +25,16 @@ agent to call it thousands of times. At each instant ``t`` (integer ticks):
    :func:`runtime.history.load_record` pairs them from a bus run's history;
 5. commands arriving at ``t`` are applied from ``t`` on (zero-order hold).
 
+Actuator-only loops (``sensor: null``) are never sampled; their moves are recorded one per
+execution (``t``, ``y = None``, ``u``). **Links** (``links:``): in step 2, before the samples,
+every link due at ``t`` gets its sender's ``law.transmit(t)`` (the node's timer, in the first
+round at ``t``) and the vector enters the link's path (:class:`~gateway.carrier.PathCarrier`,
+direction ``link``). In step 4 a multi-loop controller's batches hold link receipts as well as
+samples (delayed ones with the first batch, zero-delay ones with the second, as their messages
+arrive in the node's rounds): each batch hands its receipts to ``law.receive`` in key order, then
+takes its samples in and executes (the node dispatches ``link/<k>/rx`` as it arrives and executes
+after dispatch).
+
 A plant integrates only to instants it has something to do at, so its trajectory does not depend
 on other nodes' timers.
 """
@@ -41,9 +51,9 @@ import numpy as np
 
 from bus_schemas import keys
 from controllers.registry import build_law, build_multi_loop_law, uses_feedforward
-from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, path_hops
+from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier, path_hops
 from plants.integrate import integrator_of
-from runtime.record import LoopRecord, PlantRecord, RunRecord
+from runtime.record import LinkRecord, LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
 from runtime.time import to_ticks, to_units
 
@@ -75,13 +85,13 @@ class _Plant:
 class _Loop:
     name: str
     plant: _Plant
-    y_index: int
+    y_index: int | None  # None: an actuator-only loop (never sampled)
     u_index: int
     tau_s: int
     carrier: Any  # gateway.carrier.PathCarrier of the loop's network node
     law: Any
     feedforward: Any  # SteadyStateFeedforward or None
-    next_sample: int
+    next_sample: int | None
     deliveries: list  # heap of (t_deliver, order, y, t_sampled)
     commands: list  # heap of (t_arrive, order, u)
     record: LoopRecord
@@ -96,6 +106,19 @@ class _MultiController:
     loops: list[_Loop]  # in the order of the node's loops:
     law: Any
     held: dict[str, tuple[int, float]]  # loop -> (t_sampled, value), as the node holds them
+    measured: list[_Loop]  # the loops with a sensor
+    links_in: list[_Link]  # links it receives, by name
+
+
+@dataclass
+class _Link:
+    name: str
+    sender: _MultiController
+    carrier: Any  # gateway.carrier.PathCarrier of the link's network node
+    period: int
+    next_send: int
+    deliveries: list  # heap of (t_deliver, order, values, t_sent)
+    record: LinkRecord
 
 
 def simulate(scenario: Scenario) -> RunRecord:
@@ -156,12 +179,13 @@ def simulate(scenario: Scenario) -> RunRecord:
         law_cfg = ctrl_cfg.law
         ff = scenario.feedforward(name) if uses_feedforward(law_cfg) else None
         u_bar = ff.u_bar(scenario.plant_setpoints(lp.plant, setpoints)) if ff else 0.0
+        sensed = lp.sensor is not None
         loops[name] = _Loop(
             name=name,
             plant=plant,
-            y_index=plant.model.output_names.index(lp.sensor),
+            y_index=plant.model.output_names.index(lp.sensor) if sensed else None,
             u_index=plant.model.input_names.index(lp.actuator),
-            tau_s=to_ticks(lp.tau_s),
+            tau_s=to_ticks(lp.tau_s) if lp.tau_s is not None else 0,
             carrier=carriers[lp.network],
             law=(
                 build_law(law_cfg, u_bar=u_bar, plant=plant.model, tau_s=lp.tau_s)
@@ -169,7 +193,7 @@ def simulate(scenario: Scenario) -> RunRecord:
                 else None  # a multi-loop controller's law is built once, below
             ),
             feedforward=ff,
-            next_sample=0,
+            next_sample=0 if sensed else None,
             deliveries=[],
             commands=[],
             record=LoopRecord(
@@ -178,10 +202,10 @@ def simulate(scenario: Scenario) -> RunRecord:
                 setpoints=[(0, lp.setpoint)],
                 settling_band=lp.settling_band,
             ),
-            noise=scenario.nodes[lp.plant].noise.get(lp.sensor, 0.0),
-            rng=scenario.sensor_rng(lp.plant, lp.sensor),
+            noise=scenario.nodes[lp.plant].noise.get(lp.sensor, 0.0) if sensed else 0.0,
+            rng=scenario.sensor_rng(lp.plant, lp.sensor) if sensed else None,
         )
-    multis: list[_MultiController] = []
+    multis: dict[str, _MultiController] = {}
     for cname, cfg in sorted(scenario.nodes.items()):
         if cfg.kind != "controller" or cfg.loops is None:
             continue
@@ -190,12 +214,32 @@ def simulate(scenario: Scenario) -> RunRecord:
             cfg.law,
             loops=cfg.loops,
             plant=members[0].plant.model,
-            tau_s=min(scenario.loops[n].tau_s for n in cfg.loops),
+            tau_s=scenario.multi_loop_tau_s(cname),
+            context=scenario.multi_loop_context(cname),
         )
-        mc = _MultiController(name=cname, loops=members, law=law, held={})
+        mc = _MultiController(
+            name=cname,
+            loops=members,
+            law=law,
+            held={},
+            measured=[m for m in members if m.y_index is not None],
+            links_in=[],
+        )
         for member in members:
             member.multi = mc
-        multis.append(mc)
+        multis[cname] = mc
+    links: dict[str, _Link] = {}
+    for lname, lk in sorted(scenario.links.items()):
+        links[lname] = _Link(
+            name=lname,
+            sender=multis[lk.from_],
+            carrier=carriers[lk.network],
+            period=to_ticks(lk.period),
+            next_send=0,
+            deliveries=[],
+            record=LinkRecord(),
+        )
+        multis[lk.to].links_in.append(links[lname])
     schedule = sorted(
         ((to_ticks(c.t), i, c.loop, c.value) for i, c in enumerate(scenario.setpoints))
     )
@@ -208,8 +252,14 @@ def simulate(scenario: Scenario) -> RunRecord:
 
     def next_time() -> int | None:
         cands = [p.next_monitor for p in plants.values()]
+        for lk in links.values():
+            if lk.next_send <= end:
+                cands.append(lk.next_send)
+            if lk.deliveries:
+                cands.append(lk.deliveries[0][0])
         for lp in loops.values():
-            cands.append(lp.next_sample)
+            if lp.next_sample is not None:
+                cands.append(lp.next_sample)
             if lp.deliveries:
                 cands.append(lp.deliveries[0][0])
             if lp.commands:
@@ -253,14 +303,24 @@ def simulate(scenario: Scenario) -> RunRecord:
                     "periods": {},
                 }
             )
-        # 2. monitoring record and sensor samples
+        # 2. link transmissions (the controllers' timers), monitoring record and sensor samples
+        for lk in links.values():
+            if lk.next_send == t:
+                values = [float(v) for v in lk.sender.law.transmit(tu)]
+                lk.record.sent += 1
+                t_deliver = lk.carrier.deliver(lk.name, LINK, t)
+                if t_deliver is None:
+                    lk.record.lost += 1
+                else:
+                    heapq.heappush(lk.deliveries, (t_deliver, next(order), values, t))
+                lk.next_send += lk.period
         for p in plants.values():
             if p.next_monitor == t:
                 p.record.t.append(t)
                 p.record.x.append(p.x.tolist())
                 p.next_monitor += p.monitor
         for lp in loops.values():
-            if lp.next_sample == t:
+            if lp.next_sample == t and lp.y_index is not None:
                 y = float(lp.plant.model.outputs(lp.plant.x)[lp.y_index])
                 if lp.noise > 0.0:
                     y += lp.noise * float(lp.rng.standard_normal())
@@ -299,7 +359,7 @@ def simulate(scenario: Scenario) -> RunRecord:
                     lp.record.lost_moves += 1
                 else:
                     heapq.heappush(lp.commands, (t_arrive, next(order), u))
-        for mc in multis:
+        for mc in multis.values():
             _execute_multi(mc, t, setpoints, order)
         # 5. commands and disturbances arriving at t are applied from t on
         while disturbances and disturbances[0][0] == t:
@@ -318,6 +378,7 @@ def simulate(scenario: Scenario) -> RunRecord:
         end_time=end,
         time_unit=scenario.time_unit,
         loops={n: lp.record for n, lp in loops.items()},
+        links={n: lk.record for n, lk in links.items()},
         plants={n: p.record for n, p in plants.items()},
         disturbances=scenario.disturbance_times(),
         hops=path_hops(scenario),
@@ -333,16 +394,26 @@ def _execute_multi(mc: _MultiController, t: int, setpoints: dict[str, float], or
     """Step 4 for a multi-loop controller at ``t``: its node's rounds at ``t``, batch by batch."""
     delayed: list[tuple[_Loop, float, int]] = []
     immediate: list[tuple[_Loop, float, int]] = []
-    for lp in mc.loops:
+    for lp in mc.measured:
         while lp.deliveries and lp.deliveries[0][0] == t:
             _, _, y, t_sampled = heapq.heappop(lp.deliveries)
             (immediate if t_sampled == t else delayed).append((lp, y, t_sampled))
-    if not delayed and not immediate:
+    rx_delayed: list[tuple[_Link, list[float]]] = []
+    rx_immediate: list[tuple[_Link, list[float]]] = []
+    for lk in mc.links_in:  # by link name: the node's key order
+        while lk.deliveries and lk.deliveries[0][0] == t:
+            _, _, values, t_sent = heapq.heappop(lk.deliveries)
+            lk.record.t_sent.append(t_sent)
+            lk.record.t.append(t)
+            (rx_immediate if t_sent == t else rx_delayed).append((lk, values))
+    if not delayed and not immediate and not rx_delayed and not rx_immediate:
         return
-    first = {lp.name: len(lp.record.t) for lp in mc.loops}
+    first = {lp.name: len(lp.record.t) for lp in mc.measured}
     moves: dict[str, list[float]] = {lp.name: [] for lp in mc.loops}
     tu = to_units(t)
-    for batch in (delayed, immediate):
+    for batch, receipts in ((delayed, rx_delayed), (immediate, rx_immediate)):
+        for lk, values in receipts:
+            mc.law.receive(tu, lk.name, values)
         if not batch:
             continue
         batch.sort(key=lambda s: keys.meas(s[0].name))  # the node's (key, src, seq) order
@@ -355,21 +426,27 @@ def _execute_multi(mc: _MultiController, t: int, setpoints: dict[str, float], or
             held = mc.held.get(lp.name)
             if held is None or t_sampled >= held[0]:
                 mc.held[lp.name] = (t_sampled, y)
-        if len(mc.held) < len(mc.loops):
+        if len(mc.held) < len(mc.measured):
             continue  # some loop has not delivered yet: no move
         u = mc.law.step(
             tu,
-            {lp.name: mc.held[lp.name][1] for lp in mc.loops},
+            {lp.name: mc.held[lp.name][1] for lp in mc.measured},
             {lp.name: setpoints[lp.name] for lp in mc.loops},
         )
         for lp in mc.loops:
             moves[lp.name].append(u[lp.name])
+            if lp.y_index is None:  # an actuator-only loop: one record entry per move
+                rec = lp.record
+                rec.t.append(t)
+                rec.y.append(None)
+                rec.u.append(u[lp.name])
+                rec.t_sampled.append(t)
             t_arrive = lp.carrier.deliver(lp.name, ACTUATOR, t)
             if t_arrive is None:
                 lp.record.lost_moves += 1
             else:
                 heapq.heappush(lp.commands, (t_arrive, next(order), u[lp.name]))
-    for lp in mc.loops:  # the k-th sample of a loop at t goes with its k-th move at t
+    for lp in mc.measured:  # the k-th sample of a loop at t goes with its k-th move at t
         made = moves[lp.name]
         for k, i in enumerate(range(first[lp.name], len(lp.record.t))):
             lp.record.u[i] = made[k] if k < len(made) else None
@@ -402,7 +479,7 @@ def multi_loop_executions(scenario: Scenario, rec: RunRecord, controller: str) -
     cfg = scenario.nodes.get(controller)
     if cfg is None or cfg.kind != "controller" or cfg.loops is None:
         raise ValueError(f"{controller!r} is not a multi-loop controller of {scenario.name!r}")
-    names = list(cfg.loops)
+    names = [n for n in cfg.loops if scenario.loops[n].sensor is not None]
     # (t, batch: 0 delayed / 1 zero-delay, key, position) -> sample
     arrivals = []
     for name in names:
@@ -410,7 +487,7 @@ def multi_loop_executions(scenario: Scenario, rec: RunRecord, controller: str) -
         for i, (t, y, ts) in enumerate(zip(lr.t, lr.y, lr.t_sampled, strict=True)):
             arrivals.append((t, int(ts == t), keys.meas(name), i, name, y, ts))
     arrivals.sort(key=lambda a: a[:4])
-    changes = {n: rec.loops[n].setpoints for n in names}
+    changes = {n: rec.loops[n].setpoints for n in cfg.loops}
     held: dict[str, tuple[int, float]] = {}
     out: list[Execution] = []
     for (t, _), group in itertools.groupby(arrivals, key=lambda a: a[:2]):
@@ -418,6 +495,6 @@ def multi_loop_executions(scenario: Scenario, rec: RunRecord, controller: str) -
             if name not in held or ts >= held[name][0]:
                 held[name] = (ts, y)
         if len(held) == len(names):
-            r = {n: [v for tc, v in changes[n] if tc <= t][-1] for n in names}
+            r = {n: [v for tc, v in changes[n] if tc <= t][-1] for n in cfg.loops}
             out.append(Execution(t=t, y={n: held[n][1] for n in names}, r=r))
     return out

@@ -24,7 +24,7 @@ from typing import Any
 
 from bus_schemas import codec, keys
 from gateway.carrier import path_hops
-from runtime.record import LoopRecord, PlantRecord, RunRecord
+from runtime.record import LinkRecord, LoopRecord, PlantRecord, RunRecord
 from runtime.scenario import Scenario
 
 __all__ = ["SCHEMA", "connect", "messages_digest", "load_record", "read_meta"]
@@ -94,6 +94,8 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
             setpoints=[(0, lp.setpoint)],
             settling_band=lp.settling_band,
         )
+    for name in sorted(scenario.links):
+        rec.links[name] = LinkRecord()
     for name, cfg in sorted(scenario.nodes.items()):
         if cfg.kind == "plant":
             rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
@@ -120,6 +122,13 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                     moves.setdefault(parts[1], {}).setdefault(int(value["t_computed"]), []).append(
                         float(value["value"])
                     )
+            elif len(parts) == 3 and parts[0] == "link" and parts[1] in rec.links:
+                link = rec.links[parts[1]]
+                if parts[2] == "tx":
+                    link.sent += 1
+                elif parts[2] == "rx":
+                    link.t.append(t)
+                    link.t_sent.append(int(codec.unpack_mapping(body)["t_sent"]))
             elif key == keys.net_applied():
                 applied = {"t": t, **codec.unpack_mapping(body)}
                 if applied["event"] in ("rates", "no_alternative"):
@@ -143,7 +152,10 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
                 rec.net_nodes.update(codec.unpack_mapping(body)["nodes"])  # the last one wins
             elif key == keys.net_lost():
                 loss = codec.unpack_mapping(body)
-                if loss["loop"] in rec.loops:
+                if loss["direction"] == "link":
+                    if loss["loop"] in rec.links:
+                        rec.links[loss["loop"]].lost += 1
+                elif loss["loop"] in rec.loops:
                     lost_loop = rec.loops[loss["loop"]]
                     if loss["direction"] == "sensor":
                         lost_loop.lost += 1
@@ -159,9 +171,17 @@ def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunReco
         meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
     for name, loop in rec.loops.items():
         lp = scenario.loops[name]
-        loop.sent = rec.published.get(keys.sensor(lp.plant, lp.sensor), 0)
+        if lp.sensor is not None:
+            loop.sent = rec.published.get(keys.sensor(lp.plant, lp.sensor), 0)
     for name, loop in rec.loops.items():  # pair each delivered sample with the move made from it
         pending = moves.get(name, {})
+        if loop.sensor is None:  # an actuator-only loop: its moves, in the order they were made
+            for t, made in sorted(pending.items()):
+                loop.t += [t] * len(made)
+                loop.t_sampled += [t] * len(made)
+                loop.y += [None] * len(made)
+                loop.u += made
+            continue
         loop.u = [pending[t].pop(0) if pending.get(t) else None for t in loop.t]
     stop = meta.get("stop") or {}
     rec.dropped_invalid = dict(stop.get("dropped_invalid", {}))

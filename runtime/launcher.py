@@ -177,7 +177,7 @@ def launch(
         rec.wall_s = time.perf_counter() - wall0
         save_record(rec, out)
         summary = write_summary(rec, out)
-        write_plots(rec, out)
+        write_plots(rec, out, scenario=scenario)
         return RunResult(0, None, summary, out)
     return _launch_bus(
         scenario,
@@ -267,7 +267,7 @@ def _launch_bus(
     stopped = prog.stop_at or wall_end
     rec.phases = {"startup": first - wall0, "run": stopped - first, "teardown": wall_end - stopped}
     summary = write_summary(rec, out)
-    write_plots(rec, out)
+    write_plots(rec, out, scenario=scenario)
     return RunResult(0, None, summary, out)
 
 
@@ -399,6 +399,9 @@ def _run_threads(
     errors: dict[str, str] = {}
     result: dict[str, int] = {}
     clock: list[ClockRunner] = []
+    started: dict[str, Any] = {}  # name -> node object, for aborting stragglers
+    lock = threading.Lock()
+    aborted = threading.Event()
 
     def run_node(name: str) -> None:
         session = open_client(endpoint)
@@ -413,7 +416,12 @@ def _run_threads(
                 ctx = NodeContext(
                     name, run_id, scenario, session, {"out": str(out), "engine": engine}
                 )
-                node_class(scenario, name)(ctx).run()
+                node = node_class(scenario, name)(ctx)
+                with lock:
+                    if aborted.is_set():
+                        return  # the run was cancelled while this node was being built
+                    started[name] = node
+                node.run()
         except Exception as err:  # noqa: BLE001 - reported as the node's failure
             errors[name] = f"{type(err).__name__}: {err}"
             log.exception("node %s failed: %s", name, err)
@@ -432,6 +440,11 @@ def _run_threads(
             name = sorted(errors)[0]
             message = f"node {name!r} failed while starting: {errors[name]}"
             clock[0].cancel(message)  # the clock stops the others; no thread outlives the run
+            clock_thread.join(_EXIT_GRACE_S)
+            with lock:  # a node that subscribed after the clock's Stop would wait for rounds
+                aborted.set()
+                for node in started.values():
+                    node.abort()
             for th in threads:
                 th.join(_EXIT_GRACE_S)
             return 1, message, None

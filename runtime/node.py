@@ -253,6 +253,11 @@ class Node:
 
         return callback
 
+    def abort(self) -> None:
+        """Leave the run at the next wait (thread-safe): the launcher's way to stop a node that
+        joined after the clock had already stopped the run (it would never see the ``Stop``)."""
+        self._queue.put(("clock_gone", "", b""))
+
     def _on_clock_liveliness(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.DELETE:
             self._queue.put(("clock_gone", "", b""))

@@ -16,6 +16,7 @@ from runtime.time import to_units
 
 __all__ = [
     "LoopRecord",
+    "LinkRecord",
     "PlantRecord",
     "RunRecord",
     "summarize",
@@ -26,10 +27,14 @@ __all__ = [
 
 @dataclass
 class LoopRecord:
-    """One loop: every delivered sample and the control move computed from it."""
+    """One loop: every delivered sample and the control move computed from it.
+
+    An actuator-only loop (``sensor`` ``None``) has one entry per move instead: ``t`` (and
+    ``t_sampled``) the time it was computed, ``y`` ``None``.
+    """
 
     plant: str
-    sensor: str
+    sensor: str | None
     t: list[int] = field(default_factory=list)  # ticks of delivery = of the control move
     y: list[float] = field(default_factory=list)
     u: list[float | None] = field(default_factory=list)  # None: no move (controller lost)
@@ -41,6 +46,16 @@ class LoopRecord:
         0  # samples the network lost (the rest of sent - delivered was in flight at the end)
     )
     lost_moves: int = 0  # control moves lost on the actuator path
+
+
+@dataclass
+class LinkRecord:
+    """One link (data between controllers): transmissions, and every delivery."""
+
+    sent: int = 0
+    lost: int = 0
+    t: list[int] = field(default_factory=list)  # ticks of delivery
+    t_sent: list[int] = field(default_factory=list)  # ticks of transmission, per delivery
 
 
 @dataclass
@@ -68,6 +83,7 @@ class RunRecord:
     end_time: int  # ticks
     time_unit: str = "pu"
     loops: dict[str, LoopRecord] = field(default_factory=dict)
+    links: dict[str, LinkRecord] = field(default_factory=dict)
     plants: dict[str, PlantRecord] = field(default_factory=dict)
     published: dict[str, int] = field(default_factory=dict)
     dropped_invalid: dict[str, int] = field(default_factory=dict)
@@ -86,9 +102,12 @@ def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
     """Overshoot, settling time and IAE of loop ``name``, per step and overall.
 
     Each step is judged over the window from the step to the loop's next step, the next scheduled
-    disturbance on its plant, or the end of the run, whichever comes first.
+    disturbance on its plant, or the end of the run, whichever comes first. An actuator-only
+    loop measures nothing: every figure is ``None``.
     """
     loop = rec.loops[name]
+    if loop.sensor is None:
+        return {"overshoot_pct": None, "settling_time": None, "iae": None, "steps": []}
     t, y = rec.plants[loop.plant].signal(loop.sensor)
     end = to_units(rec.end_time)
     changes = loop.setpoints
@@ -137,22 +156,45 @@ def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
     }
 
 
+def _delays(t: list[int], t_sent: list[int]) -> dict[str, float | None]:
+    delays = np.array([to_units(d - s) for d, s in zip(t, t_sent, strict=True)])
+    return {
+        "delay_mean": float(delays.mean()) if len(delays) else None,
+        "delay_p95": float(np.percentile(delays, 95)) if len(delays) else None,
+        "delay_max": float(delays.max()) if len(delays) else None,
+    }
+
+
 def path_stats(rec: RunRecord) -> dict[str, dict[str, Any]]:
-    """Per loop sensor path: hops, delivered delays (mean, p95, max; time units), sent, lost."""
+    """Per loop sensor path: hops, delivered delays (mean, p95, max; time units), sent, lost.
+    An actuator-only loop has no sensor path: no delays, nothing sent."""
     out = {}
     for name, loop in sorted(rec.loops.items()):
-        delays = np.array([to_units(d - s) for d, s in zip(loop.t, loop.t_sampled, strict=True)])
+        sensed = loop.sensor is not None
+        delivered = len(loop.t) if sensed else 0
         out[name] = {
             "hops": rec.hops.get(name, 0),
-            "delay_mean": float(delays.mean()) if len(delays) else None,
-            "delay_p95": float(np.percentile(delays, 95)) if len(delays) else None,
-            "delay_max": float(delays.max()) if len(delays) else None,
+            **_delays(loop.t if sensed else [], loop.t_sampled if sensed else []),
             "sent": loop.sent,
             "lost": loop.lost,
-            "in_flight_at_end": loop.sent - len(loop.t) - loop.lost,
+            "in_flight_at_end": loop.sent - delivered - loop.lost,
             "moves_lost": loop.lost_moves,
         }
     return out
+
+
+def link_stats(rec: RunRecord) -> dict[str, dict[str, Any]]:
+    """Per link: delivered delays (mean, p95, max; time units), sent, delivered, lost."""
+    return {
+        name: {
+            **_delays(lk.t, lk.t_sent),
+            "sent": lk.sent,
+            "delivered": len(lk.t),
+            "lost": lk.lost,
+            "in_flight_at_end": lk.sent - len(lk.t) - lk.lost,
+        }
+        for name, lk in sorted(rec.links.items())
+    }
 
 
 def summarize(rec: RunRecord) -> dict[str, Any]:
@@ -167,6 +209,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
         }
         loops[name] = entry
     paths = path_stats(rec)
+    links = link_stats(rec)
     return {
         "scenario": rec.scenario,
         "seed": rec.seed,
@@ -177,10 +220,13 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
         "messages": {
             "published": dict(sorted(rec.published.items())),
             "dropped_invalid": dict(sorted(rec.dropped_invalid.items())),
-            "lost": rec.lost + sum(p["lost"] + p["moves_lost"] for p in paths.values()),
+            "lost": rec.lost
+            + sum(p["lost"] + p["moves_lost"] for p in paths.values())
+            + sum(lk["lost"] for lk in links.values()),
         },
         "network": {
             "paths": paths,
+            **({"links": links} if links else {}),
             "nodes": dict(sorted(rec.net_nodes.items())),
             "configurations": [{**c, "t": to_units(c["t"])} for c in rec.configurations],
         },

@@ -9,7 +9,14 @@ Shape (see ``scenarios/jcstr_benchmark.yaml``)::
     name, time_unit, end_time, seed, clock: {...}
     nodes:    name -> {kind: plant | controller | network | gateway | operator | agent, ...}
     loops:    name -> {plant, sensor, actuator, controller, network, tau_s, tau_d, tau_a, setpoint}
+    links:    name -> {from, to, network, period, delay, source_node, dest_node}
     setpoints: [{t, loop, value}, ...]
+
+A loop with ``sensor: null`` is an **actuator-only** loop: one input of a multi-loop controller
+whose law moves inputs it does not measure (seed 001's units measure a temperature and move a heat
+input and a feed concentration); it has no sampling, no sensor path and no step figures. A **link**
+carries what one multi-loop controller's law transmits (``transmit(t)``, every ``period``) to
+another (``receive(t, link, values)``) over a network node, like a sensor path.
 
 Two node names are reserved and always present: ``clock`` and ``historian``.
 """
@@ -26,7 +33,16 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
 from bus_schemas import keys
-from controllers.registry import LawConfig, check_loops, is_multi_loop, uses_feedforward
+from controllers.registry import (
+    LawConfig,
+    MultiLoopContext,
+    accepts_actuator_only_loops,
+    build_multi_loop_law,
+    check_loops,
+    exchanges_estimates,
+    is_multi_loop,
+    uses_feedforward,
+)
 from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
@@ -42,6 +58,7 @@ __all__ = [
     "GatewayNodeConfig",
     "OperatorNodeConfig",
     "LoopConfig",
+    "LinkConfig",
     "SetpointChange",
     "ModeChange",
     "Disturbance",
@@ -264,11 +281,16 @@ class LoopConfig(BaseModel):
     model_config = _STRICT
 
     plant: str
-    sensor: str = Field(description="plant output measured by the loop's sensor")
+    sensor: str | None = Field(
+        description="plant output measured by the loop's sensor; null: an actuator-only loop "
+        "(an input of a multi-loop controller that it does not measure)"
+    )
     actuator: str = Field(description="plant input moved by the loop's controller")
     controller: str = Field(description="name of the controller node")
     network: str = Field(description="network node carrying the loop's sensor and actuator paths")
-    tau_s: float = Field(gt=0, description="sampling period of the loop's sensor")
+    tau_s: float | None = Field(
+        default=None, gt=0, description="sampling period of the loop's sensor (none without one)"
+    )
     tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
     tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
     sensor_node: str | None = Field(
@@ -278,9 +300,58 @@ class LoopConfig(BaseModel):
         default=None,
         description="gateway networks: the topology node hosting the actuator; None = wired",
     )
-    setpoint: float = Field(description="set point at t = 0")
+    setpoint: float | None = Field(
+        default=None, description="set point at t = 0 (an actuator-only loop may have none)"
+    )
     settling_band: float = Field(
         default=0.02, gt=0, lt=1, description="settling band as a fraction of the step size"
+    )
+
+    @model_validator(mode="after")
+    def _sensor_or_not(self) -> LoopConfig:
+        if self.sensor is not None:
+            for field in ("tau_s", "setpoint"):
+                if getattr(self, field) is None:
+                    raise ValueError(f"{field}: Field required (the loop has a sensor)")
+            return self
+        for field, value, default in (
+            ("tau_s", self.tau_s, None),
+            ("tau_d", self.tau_d, 0.0),
+            ("sensor_node", self.sensor_node, None),
+        ):
+            if value != default:
+                raise ValueError(
+                    f"{field}: an actuator-only loop (sensor: null) samples nothing; leave "
+                    f"{field} out"
+                )
+        return self
+
+    @property
+    def has_sensor(self) -> bool:
+        """Whether the loop measures something (``False``: an actuator-only loop)."""
+        return self.sensor is not None
+
+
+class LinkConfig(BaseModel):
+    """Data one controller's law sends to another's every ``period`` over a network node
+    (seed 001: a unit's state estimate, the update of its neighbours' models)."""
+
+    model_config = ConfigDict(
+        frozen=True, extra="forbid", validate_by_name=True, serialize_by_alias=True
+    )
+
+    from_: str = Field(alias="from", description="the sending controller node")
+    to: str = Field(description="the receiving controller node")
+    network: str = Field(description="network or gateway node that carries it")
+    period: float = Field(gt=0, description="update period h: one transmission every period")
+    delay: float = Field(
+        default=0.0, ge=0, description="constant delay over a wired network (kind: network)"
+    )
+    source_node: str | None = Field(
+        default=None, description="gateway networks: the topology node of the sender"
+    )
+    dest_node: str | None = Field(
+        default=None, description="gateway networks: the topology node of the receiver"
     )
 
 
@@ -331,6 +402,9 @@ class Scenario(BaseModel):
     clock: ClockConfig = ClockConfig()
     nodes: dict[str, NodeConfig]
     loops: dict[str, LoopConfig]
+    links: dict[str, LinkConfig] = Field(
+        default_factory=dict, description="data exchanged between controllers, by link name"
+    )
     setpoints: list[SetpointChange] = []
     disturbances: list[Disturbance] = []
     modes: list[ModeChange] = Field(
@@ -352,6 +426,13 @@ class Scenario(BaseModel):
         for name in loops:
             keys.check_name(name, "loop name")
         return loops
+
+    @field_validator("links")
+    @classmethod
+    def _link_names(cls, links: dict[str, Any]) -> dict[str, Any]:
+        for name in links:
+            keys.check_name(name, "link name")
+        return links
 
     @model_validator(mode="after")
     def _check_graph(self) -> Scenario:
@@ -377,7 +458,15 @@ class Scenario(BaseModel):
             at = f"loops.{lname}"
             plant_cfg = node_of("plant", loop.plant, f"{at}.plant")
             plant = plant_cfg.build()
-            if loop.sensor not in plant.output_names:
+            ctrl = node_of("controller", loop.controller, f"{at}.controller")
+            if loop.sensor is None:
+                if ctrl.loops is None or not accepts_actuator_only_loops(ctrl.law):
+                    raise ValueError(
+                        f"{at}.sensor: null (an actuator-only loop) is allowed only for a loop of "
+                        "a multi-loop controller whose law moves inputs it does not measure; "
+                        f"node {loop.controller!r} (law {ctrl.law.type!r}) needs a sensor"
+                    )
+            elif loop.sensor not in plant.output_names:
                 raise ValueError(
                     f"{at}.sensor: plant {loop.plant!r} has no output {loop.sensor!r} "
                     f"(outputs: {list(plant.output_names)})"
@@ -387,7 +476,6 @@ class Scenario(BaseModel):
                     f"{at}.actuator: plant {loop.plant!r} has no input {loop.actuator!r} "
                     f"(inputs: {list(plant.input_names)})"
                 )
-            ctrl = node_of("controller", loop.controller, f"{at}.controller")
             if lname not in ctrl.loop_names:
                 what = f"loop {ctrl.loop!r}" if ctrl.loops is None else f"loops {list(ctrl.loops)}"
                 raise ValueError(f"{at}.controller: node {loop.controller!r} controls {what}")
@@ -400,7 +488,7 @@ class Scenario(BaseModel):
             net = self.nodes.get(loop.network)
             if net is not None and net.kind == "gateway":
                 topo_nodes = net.topology.nodes
-                if loop.sensor_node not in topo_nodes:
+                if loop.sensor is not None and loop.sensor_node not in topo_nodes:
                     raise ValueError(
                         f"{at}.sensor_node: {loop.sensor_node!r} is not a node of the topology of "
                         f"{loop.network!r} (nodes: {sorted(topo_nodes)})"
@@ -419,7 +507,7 @@ class Scenario(BaseModel):
                 node_of("network", loop.network, f"{at}.network")
                 if loop.sensor_node is not None or loop.actuator_node is not None:
                     raise ValueError(f"{at}.sensor_node: only loops over a gateway name WSN nodes")
-            if to_ticks(loop.tau_s) < 1:
+            if loop.tau_s is not None and to_ticks(loop.tau_s) < 1:
                 raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
         for name, node in self.nodes.items():
             if node.kind != "controller":
@@ -435,6 +523,11 @@ class Scenario(BaseModel):
                         f"{at}: loop {lname!r} names {self.loops[lname].controller!r} as its "
                         "controller"
                     )
+            if all(self.loops[lname].sensor is None for lname in node.loops):
+                raise ValueError(
+                    f"nodes.{name}.loops: every loop is actuator-only (sensor: null); the law "
+                    "executes on samples and would never move"
+                )
             if self.agent_node() is not None:
                 raise ValueError(
                     f"nodes.{name}.loops: the coordination agent governs single-loop controllers "
@@ -454,6 +547,10 @@ class Scenario(BaseModel):
         for name, node in self.nodes.items():
             if node.kind == "monitor":
                 node.check(self, name)  # the loop and columns it assesses exist
+                if self.loops[node.loop].sensor is None:
+                    raise ValueError(
+                        f"nodes.{name}.loop: loop {node.loop!r} is actuator-only (no samples)"
+                    )
         moved = {(lp.plant, lp.actuator) for lp in self.loops.values()}
         for i, dist in enumerate(self.disturbances):
             at = f"disturbances[{i}]"
@@ -476,6 +573,11 @@ class Scenario(BaseModel):
                 )
             if change.t > self.end_time:
                 raise ValueError(f"setpoints[{i}].t: {change.t} is after end_time {self.end_time}")
+            if self.loops[change.loop].sensor is None:
+                raise ValueError(
+                    f"setpoints[{i}].loop: {change.loop!r} is actuator-only (sensor: null): "
+                    "it has no set point"
+                )
             if change.announce > change.t:
                 raise ValueError(
                     f"setpoints[{i}].announce: {change.announce} is before the run starts "
@@ -491,7 +593,99 @@ class Scenario(BaseModel):
             if change.t > self.end_time:
                 raise ValueError(f"modes[{i}].t: {change.t} is after end_time {self.end_time}")
         self._check_feedforward()
+        self._check_links()
+        self._check_multi_loop_laws()
         return self
+
+    def _check_links(self) -> None:
+        """Links join two multi-loop controllers whose laws exchange data, over a network node."""
+        for name, link in self.links.items():
+            at = f"links.{name}"
+            if name in self.loops:
+                raise ValueError(f"{at}: a loop has that name; name links and loops apart")
+            for field, node in (("from", link.from_), ("to", link.to)):
+                cfg = self.nodes.get(node)
+                if cfg is None or cfg.kind != "controller":
+                    known = sorted(n for n, c in self.nodes.items() if c.kind == "controller")
+                    raise ValueError(
+                        f"{at}.{field}: {node!r} is not a controller node (controllers: {known})"
+                    )
+                if cfg.loops is None:
+                    raise ValueError(
+                        f"{at}.{field}: node {node!r} controls one loop; links join multi-loop "
+                        "controllers (loops: [...])"
+                    )
+                if not exchanges_estimates(cfg.law):
+                    raise ValueError(
+                        f"{at}.{field}: the law of node {node!r} ({cfg.law.type!r}) does not "
+                        "transmit or receive on links"
+                    )
+            if link.from_ == link.to:
+                raise ValueError(f"{at}.to: a link joins two different controllers")
+            net = self.nodes.get(link.network)
+            if net is not None and net.kind == "gateway":
+                topo_nodes = net.topology.nodes
+                for field, node in (
+                    ("source_node", link.source_node),
+                    ("dest_node", link.dest_node),
+                ):
+                    if node not in topo_nodes:
+                        raise ValueError(
+                            f"{at}.{field}: {node!r} is not a node of the topology of "
+                            f"{link.network!r} (nodes: {sorted(topo_nodes)})"
+                        )
+                if link.source_node == link.dest_node:
+                    raise ValueError(f"{at}.dest_node: the link's two ends are the same node")
+                if link.delay:
+                    raise ValueError(
+                        f"{at}.delay: a gateway's paths take their delays from its topology; "
+                        "leave delay at 0"
+                    )
+            else:
+                if net is None or net.kind != "network":
+                    raise ValueError(
+                        f"{at}.network: {link.network!r} is not a network or gateway node"
+                    )
+                if link.source_node is not None or link.dest_node is not None:
+                    raise ValueError(f"{at}.source_node: only links over a gateway name WSN nodes")
+            if to_ticks(link.period) < 1:
+                raise ValueError(f"{at}.period: {link.period} is shorter than one tick")
+
+    def _check_multi_loop_laws(self) -> None:
+        """Build every multi-loop law once, so that refusals that depend on the plant (a design
+        the plant's linearization does not admit) name the node before anything starts."""
+        for name, node in self.nodes.items():
+            if node.kind != "controller" or node.loops is None:
+                continue
+            plant = self.nodes[self.loops[node.loops[0]].plant].build()
+            try:
+                build_multi_loop_law(
+                    node.law,
+                    loops=node.loops,
+                    plant=plant,
+                    tau_s=self.multi_loop_tau_s(name),
+                    context=self.multi_loop_context(name),
+                )
+            except ValueError as err:
+                raise ValueError(f"nodes.{name}.law.{node.law.type}: {err}") from err
+
+    def multi_loop_context(self, controller: str) -> MultiLoopContext:
+        """The loops' signals and the links of multi-loop controller ``controller``."""
+        cfg = self.nodes[controller]
+        return MultiLoopContext(
+            signals={n: (self.loops[n].sensor, self.loops[n].actuator) for n in cfg.loop_names},
+            sends=tuple(n for n, lk in sorted(self.links.items()) if lk.from_ == controller),
+            receives=tuple(n for n, lk in sorted(self.links.items()) if lk.to == controller),
+        )
+
+    def multi_loop_tau_s(self, controller: str) -> float:
+        """The shortest sampling period of a multi-loop controller's loops with a sensor."""
+        cfg = self.nodes[controller]
+        return min(
+            float(self.loops[n].tau_s)  # type: ignore[arg-type]
+            for n in cfg.loop_names
+            if self.loops[n].tau_s is not None
+        )
 
     def _check_agent(self) -> None:
         """At most one coordination agent; every loop it names must exist."""
@@ -568,7 +762,11 @@ class Scenario(BaseModel):
 
         lp = self.loops[loop]
         plant = self.nodes[lp.plant].build()
-        outputs = {n: other.sensor for n, other in self.loops_of_plant(lp.plant).items()}
+        outputs = {
+            n: other.sensor
+            for n, other in self.loops_of_plant(lp.plant).items()
+            if other.sensor is not None
+        }
         return SteadyStateFeedforward(plant, outputs, lp.actuator)
 
     def disturbance_times(self) -> dict[str, list[int]]:

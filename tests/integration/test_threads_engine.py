@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 
 import msgpack
 
@@ -171,6 +172,32 @@ def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, mo
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1
     assert "node 'operator' failed while starting: ValueError: boom at start" in res.error
+    names = set(load_scenario(BENCHMARK).participants()) | {"clock"}
+    alive = [th.name for th in threading.enumerate() if th.name in names and th.is_alive()]
+    assert alive == []
+
+
+def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, monkeypatch):
+    """A node that subscribes only after the clock stopped the run never sees the ``Stop``: the
+    launcher aborts it (a loaded machine makes this race real)."""
+    from agents.operator.node import OperatorNode
+    from controllers.node import ControllerNode
+    from runtime import nodes
+
+    class Failing(OperatorNode):
+        def __init__(self, ctx) -> None:
+            super().__init__(ctx)
+            raise ValueError("boom at start")
+
+    class Slow(ControllerNode):
+        def __init__(self, ctx) -> None:
+            time.sleep(1.5)  # still being built when the clock stops the run
+            super().__init__(ctx)
+
+    monkeypatch.setitem(nodes.NODE_CLASSES, "operator", Failing)
+    monkeypatch.setitem(nodes.NODE_CLASSES, "controller", Slow)
+    res = launch(BENCHMARK, tmp_path / "run", engine="threads")
+    assert res.code == 1 and "boom at start" in res.error
     names = set(load_scenario(BENCHMARK).participants()) | {"clock"}
     alive = [th.name for th in threading.enumerate() if th.name in names and th.is_alive()]
     assert alive == []

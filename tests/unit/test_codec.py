@@ -11,6 +11,7 @@ import zenoh
 from bus_schemas import (
     Decision,
     Done,
+    Estimate,
     InjectRequest,
     ModeRequest,
     Move,
@@ -31,6 +32,7 @@ from runtime.errors import SchemaError
 BODIES = [
     Sample(value=0.7, t_sampled=1_800_000),
     Move(value=1.25, t_computed=5),
+    Estimate(values=(1.5, -0.02), t_sent=38_806),
     Setpoint(value=56.0),
     PlantState(t=(0, 10_000), values={"H": (0.7, 0.71), "T": (52.0, 52.1)}),
     Tick(round=3, t=100, expected={"loop/level/meas": 1}),
@@ -109,6 +111,8 @@ BUILT = [
     keys.plant_state("reactor"),
     keys.meas("level"),
     keys.move("level"),
+    keys.link_tx("x1"),
+    keys.link_rx("x1"),
     keys.setpoint("level"),
     keys.setpoint_all(),
 ]
@@ -193,6 +197,22 @@ def _body(body_type, body) -> bytes:
         (InjectRequest, {"mode": "steady_state", "setpoint": {"loop": "level"}}, "exactly one"),
         (Timing, {"proposal": 0, "decision_s": -1.0}, "decision_s"),
         (Setpoint, {"value": 1.0, "t_apply": -5}, "t_apply"),
+        (Estimate, {"values": [], "t_sent": 0}, "values"),
+        (Estimate, {"values": ["hot"], "t_sent": 0}, "values"),
+        (Estimate, {"values": [float("nan")], "t_sent": 0}, "finite"),
+        (Estimate, {"values": [1.0], "t_sent": -1}, "t_sent"),
+        (
+            Rates,
+            {
+                "mode": "x",
+                "periods": {},
+                "closed": {},
+                "control_periods": {},
+                "proposal": None,
+                "link_periods": {"x1": 0},
+            },
+            "link_periods.x1: must be > 0 ticks",
+        ),
     ],
 )
 def test_agent_bodies_reject_bad_input(body_type, body, fragment):
