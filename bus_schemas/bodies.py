@@ -6,7 +6,7 @@ Bodies are frozen and forbid extra fields; time is integer ticks, never float.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -217,7 +217,7 @@ class Decision(BaseModel):
 
     model_config = _FROZEN
 
-    subject: Literal["proposal", "mode", "setpoint"]
+    subject: Literal["proposal", "mode", "setpoint", "links"]
     network: str | None = Field(default=None, description="the proposing network node")
     proposal: int | None = Field(default=None, description="the proposal's id, if any")
     verdict: Literal["accept", "reject", "refuse", "keep"]
@@ -231,6 +231,11 @@ class Decision(BaseModel):
     offending: tuple[str, ...] = Field(default=(), description="loops over their bound")
     paths: tuple[str, ...] = Field(
         default=(), description="paths of the offending loops, for the gateway's alternative"
+    )
+    links: tuple[dict[str, Any], ...] = Field(
+        default=(),
+        description="per group of linked controllers: delay, stabilizing update periods "
+        "(h_min, h_max), the assigned h and rho(M) there (agents.wncsca.links.LinkVerdict)",
     )
 
 

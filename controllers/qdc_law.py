@@ -59,6 +59,7 @@ from controllers.qdc import (
     ObserverPoles,
     QDCDesign,
     QDCNetwork,
+    closed_loop_matrices,
 )
 
 __all__ = ["UnitSignals", "QDCLawConfig", "QDCLaw"]
@@ -292,6 +293,13 @@ class QDCLaw:
     def estimate(self) -> NDArray[np.float64]:
         """The unit's observer estimate ``xbar_i`` at the last call (deviation)."""
         return self.z[self.local.xbar].copy()
+
+    def closed_loop(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The linearized networked loop this law is part of: flow ``Acl`` and update reset
+        ``Rcl`` of :func:`controllers.qdc.closed_loop_matrices` (the true linearization, every
+        unit's controller with its embedded models). What a coordination agent analyses
+        (:mod:`agents.wncsca.links`); every unit's law of one design returns the same."""
+        return closed_loop_matrices(self.plant_units, self.network)
 
 
 def _unit_index(plant: Any, k: int, unit: UnitSignals) -> tuple[list[int], list[int], list[int]]:

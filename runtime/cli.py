@@ -163,7 +163,8 @@ def _table(summary: dict[str, Any]) -> str:
         st = lp["settling_time"]
         rows.append(
             f"{name:<14}{'-' if os_ is None else f'{os_:.2f}':>12}"
-            f"{'not settled' if st is None else f'{st:.3f}':>14}{lp['iae']:>12.4g}"
+            f"{'not settled' if st is None else f'{st:.3f}':>14}"
+            f"{'-' if lp['iae'] is None else format(lp['iae'], '.4g'):>12}"
         )
     return "\n".join(rows)
 

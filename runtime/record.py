@@ -270,6 +270,7 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
                 "periods": {n: to_units(p) for n, p in r["periods"].items()},
                 "closed": r["closed"],
                 "control_periods": {n: to_units(p) for n, p in r["control_periods"].items()},
+                "link_periods": {n: to_units(p) for n, p in r.get("link_periods", {}).items()},
                 "method": r.get("method"),
                 "overshoot_pct": r.get("overshoot_pct", {}),
                 **({"search": r["assignment"]} if r.get("assignment") else {}),

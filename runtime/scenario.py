@@ -528,10 +528,14 @@ class Scenario(BaseModel):
                     f"nodes.{name}.loops: every loop is actuator-only (sensor: null); the law "
                     "executes on samples and would never move"
                 )
-            if self.agent_node() is not None:
+            agent = self.agent_node()
+            linked = any(name in (lk.from_, lk.to) for lk in self.links.values())
+            if agent is not None and not (linked and self.nodes[agent].links is not None):
                 raise ValueError(
-                    f"nodes.{name}.loops: the coordination agent governs single-loop controllers "
-                    "only (it opens, closes and re-tunes loops one by one)"
+                    f"nodes.{name}.loops: the coordination agent simulates single-loop "
+                    "controllers only (it opens, closes and re-tunes loops one by one); it "
+                    "governs a multi-loop controller only through its links' update period "
+                    f"(links: in nodes.{agent}, and the controller on a link)"
                 )
         for i, name in enumerate(self.clock.may_drop):
             if name not in self.nodes:
@@ -657,17 +661,28 @@ class Scenario(BaseModel):
         for name, node in self.nodes.items():
             if node.kind != "controller" or node.loops is None:
                 continue
-            plant = self.nodes[self.loops[node.loops[0]].plant].build()
             try:
-                build_multi_loop_law(
-                    node.law,
-                    loops=node.loops,
-                    plant=plant,
-                    tau_s=self.multi_loop_tau_s(name),
-                    context=self.multi_loop_context(name),
-                )
+                self.multi_loop_law(name)
             except ValueError as err:
                 raise ValueError(f"nodes.{name}.law.{node.law.type}: {err}") from err
+
+    def multi_loop_law(self, controller: str) -> Any:
+        """A fresh instance of multi-loop controller ``controller``'s law, as its node builds it."""
+        node = self.nodes[controller]
+        return build_multi_loop_law(
+            node.law,
+            loops=node.loops,
+            plant=self.nodes[self.loops[node.loops[0]].plant].build(),
+            tau_s=self.multi_loop_tau_s(controller),
+            context=self.multi_loop_context(controller),
+        )
+
+    def simulated_loops(self) -> tuple[str, ...]:
+        """The loops a coordination agent judges by simulating them: those of single-loop
+        controllers (multi-loop controllers on links are governed by their update period)."""
+        return tuple(
+            n for n, lp in sorted(self.loops.items()) if self.nodes[lp.controller].loops is None
+        )
 
     def multi_loop_context(self, controller: str) -> MultiLoopContext:
         """The loops' signals and the links of multi-loop controller ``controller``."""
@@ -708,8 +723,10 @@ class Scenario(BaseModel):
                     raise ValueError(
                         f"nodes.{name}.{where}: unknown loop {loop!r} (loops: {sorted(self.loops)})"
                     )
+            if cfg.links is not None and not self.links:
+                raise ValueError(f"nodes.{name}.links: the scenario has no links to govern")
             steps = cfg.test.setpoints if cfg.test is not None else self.setpoints
-            unstepped = sorted(set(self.loops) - {s.loop for s in steps})
+            unstepped = sorted(set(self.simulated_loops()) - {s.loop for s in steps})
             if unstepped:
                 where = "test.setpoints" if cfg.test is not None else "test (default: setpoints)"
                 raise ValueError(

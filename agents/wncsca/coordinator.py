@@ -25,13 +25,14 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
 from agents.wncsca.config import MODES, WncscaConfig
-from agents.wncsca.decision import Decision, decide
+from agents.wncsca.decision import Decision, ProposalError, decide, path_delay
+from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 
@@ -68,6 +69,7 @@ class Negotiation:
     network: str
     assignment: Assignment | None = None
     energy: dict[str, Any] | None = None
+    links: list[LinkVerdict] = field(default_factory=list)
 
 
 class Coordinator:
@@ -93,16 +95,27 @@ class Coordinator:
         self.accepted: dict[str, int] = {}  # network -> last accepted proposal id
         self.proposal: int | None = None  # the last accepted proposal (any network)
         self.carried = {
-            n: [lp for lp, cfg in scenario.loops.items() if cfg.network == n]
+            n: [lp for lp in self.loops if scenario.loops[lp].network == n]
             for n, node in scenario.nodes.items()
             if node.kind in ("network", "gateway")
         }
         # wired loops: constant delays from the scenario; WSN loops: from accepted proposals
         self.delays: dict[str, float] = {
-            lp: cfg.tau_d + cfg.tau_a
-            for lp, cfg in scenario.loops.items()
-            if scenario.nodes[cfg.network].kind == "network"
+            lp: scenario.loops[lp].tau_d + scenario.loops[lp].tau_a
+            for lp in self.loops
+            if scenario.nodes[scenario.loops[lp].network].kind == "network"
         }
+        # linked controllers (seed 001): update periods by the spectral-radius test
+        self.link_groups: list[LinkGroup] = (
+            link_groups(scenario, scenario.multi_loop_law) if self.config.links else []
+        )
+        self.link_delays: dict[str, float] = {
+            n: lk.delay
+            for n, lk in scenario.links.items()
+            if scenario.nodes[lk.network].kind == "network"
+        }
+        self.link_periods: dict[str, float] = {n: lk.period for n, lk in scenario.links.items()}
+        self.link_verdicts: dict[str, LinkVerdict] = {}
         self._bounds: dict[str, DelayBound] | None = None
         self.setpoints = {n: lp.setpoint for n, lp in scenario.loops.items()}
         self._strikes = {n: 0 for n in self.loops}
@@ -111,8 +124,27 @@ class Coordinator:
     def bounds(self) -> dict[str, DelayBound]:
         """Each loop's largest tolerable delay at the benchmark periods (computed once)."""
         if self._bounds is None:
-            self._bounds = delay_bounds(self.model)
+            self._bounds = delay_bounds(self.model) if self.loops else {}
         return self._bounds
+
+    # -- links (seed 001) ------------------------------------------------------------------
+    def govern_links(self, network: str | None = None) -> list[LinkVerdict]:
+        """Judge the link groups (those with a link over ``network``, or every group whose
+        links are all wired when ``None``) at the current link delays; an accepted group's
+        update period becomes the assigned one."""
+        out = []
+        for group in self.link_groups:
+            nets = {self.scenario.links[n].network for n in group.links}
+            if (network is None and any(n not in self.link_delays for n in group.links)) or (
+                network is not None and network not in nets
+            ):
+                continue
+            verdict = judge_links(group, self.link_delays, self.config.links)
+            self.link_verdicts[group.name] = verdict
+            if verdict.verdict == "accept":
+                self.link_periods.update(verdict.periods)
+            out.append(verdict)
+        return out
 
     # -- proposals -------------------------------------------------------------------------
     def on_proposal(self, network: str, body: Any) -> Negotiation:
@@ -127,22 +159,66 @@ class Coordinator:
         missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
         for n in missing:  # a loop of another gateway with no accepted configuration yet
             others[n] = 0.0
-        decision = decide(pid, body.get("paths"), self.bounds, self.config.estimate, wired=others)
+        paths = body.get("paths")
+        link_paths: dict[str, Any] = {}
+        if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
+            link_paths = {
+                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.scenario.links
+            }
+            paths = {p: e for p, e in paths.items() if p not in link_paths}
+        decision = decide(pid, paths, self.bounds, self.config.estimate, wired=others)
         if decision.verdict == "refuse":
             return Negotiation(decision, network)
-        if decision.verdict == "reject":
-            return Negotiation(decision, network)
+        try:
+            link_delays = self._link_delays(network, link_paths)
+        except ProposalError as err:
+            return self._refused(network, pid, str(err))
+        links = self._judge_links(network, link_delays)
+        rejected = [v for v in links if v.verdict == "reject"]
+        if decision.verdict == "reject" or rejected:
+            decision = _with_links(decision, links)
+            return Negotiation(decision, network, links=links)
+        self.link_delays.update(link_delays)
+        for v in links:
+            self.link_verdicts[v.group] = v
+            self.link_periods.update(v.periods)
+        decision = _with_links(decision, links)
         self.delays.update({n: decision.delays[n] for n in self.carried[network]})
         self.accepted[network] = pid
         self.proposal = pid
-        weights = _weights(body.get("paths"), self.loops)
+        if not self.carried[network]:  # a network carrying links only: no periods to negotiate
+            return Negotiation(decision, network, links=links)
+        weights = _weights(paths, self.loops)
         result = assign(self.model, self.delays, weights)
         if result.feasible:
             self.control_periods = dict(result.periods)
         self.predicted = dict(result.overshoot_pct)
         self.method = result.method
-        energy = self.energy(network, body.get("paths"))
-        return Negotiation(decision, network, result, energy)
+        energy = self.energy(network, paths)
+        return Negotiation(decision, network, result, energy, links)
+
+    def _link_delays(self, network: str, link_paths: Mapping[str, Any]) -> dict[str, float]:
+        """Delay of every link of ``network`` from its path in a proposal (``inf``: no route)."""
+        out: dict[str, float] = {}
+        for name, lk in sorted(self.scenario.links.items()):
+            if lk.network != network or not self.config.links:
+                continue
+            entry = link_paths.get(f"{name}.link")
+            if entry is None:
+                raise ProposalError(f"paths.{name}.link: missing (link {name} is on {network})")
+            delay, _ = path_delay(f"{name}.link", entry, self.config.estimate)
+            out[name] = math.inf if delay is None else delay
+        return out
+
+    def _judge_links(self, network: str, delays: Mapping[str, float]) -> list[LinkVerdict]:
+        """Judge the groups with a link over ``network`` under the proposal's link ``delays``."""
+        out = []
+        for group in self.link_groups:
+            if not any(self.scenario.links[n].network == network for n in group.links):
+                continue
+            trial = {**self.link_delays, **delays}
+            out.append(judge_links(group, trial, self.config.links))
+        return out
 
     def on_no_alternative(self, network: str, proposal: int | None) -> Decision:
         """The gateway has no alternative to a rejected proposal: keep what was accepted."""
@@ -284,6 +360,23 @@ class Coordinator:
             "lifetime_h_benchmark": bench if math.isfinite(bench) else None,
             "ratio": assigned / bench if finite else None,
         }
+
+
+def _with_links(decision: Decision, links: list[LinkVerdict]) -> Decision:
+    """``decision`` on the loops combined with the verdicts on the link groups: rejected if any
+    group is, the links of a rejected group offending (so the gateway offers an alternative)."""
+    if not links:
+        return decision
+    rejected = [v for v in links if v.verdict == "reject"]
+    offending = tuple(decision.offending) + tuple(n for v in rejected for n in v.links)
+    delays = {**decision.delays, **{n: v.delay for v in links for n in v.links}}
+    return replace(
+        decision,
+        verdict="reject" if rejected or decision.verdict == "reject" else decision.verdict,
+        reasons=tuple(decision.reasons) + tuple(r for v in links for r in v.reasons),
+        delays=delays,
+        offending=offending,
+    )
 
 
 def _weights(paths: Any, loops: tuple[str, ...]) -> dict[str, float]:

@@ -19,7 +19,7 @@ from typing import Any
 from agents.wncsca.bounds import DelayBound
 from agents.wncsca.config import ESTIMATES
 
-__all__ = ["Decision", "ProposalError", "control_path_delays", "decide"]
+__all__ = ["Decision", "ProposalError", "control_path_delays", "decide", "path_delay"]
 
 _DIRECTIONS = ("sensor", "actuator")
 
@@ -52,7 +52,7 @@ class Decision:
         }
 
 
-def _estimate(path: str, entry: Any, preferred: str) -> tuple[float | None, str | None]:
+def path_delay(path: str, entry: Any, preferred: str) -> tuple[float | None, str | None]:
     """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down."""
     if not isinstance(entry, Mapping):
         raise ProposalError(f"paths.{path}: expected a mapping, got {type(entry).__name__}")
@@ -112,7 +112,7 @@ def control_path_delays(
             raise ProposalError(f"paths.{path}: unknown loop {loop!r} (loops: {list(loops)})")
         if direction not in _DIRECTIONS:
             raise ProposalError(f"paths.{path}: unknown direction {direction!r}")
-        value, name = _estimate(path, paths[path], preferred)
+        value, name = path_delay(path, paths[path], preferred)
         if value is None or (loop in delays and delays[loop] is None):
             delays[loop] = None
             continue

@@ -44,6 +44,7 @@ class LinkVerdict:
     """What the analysis says about one group under one delay."""
 
     group: str
+    links: tuple[str, ...]
     verdict: str  # accept | reject
     delay: float
     h_min: float
@@ -59,6 +60,7 @@ class LinkVerdict:
 
         return {
             "group": self.group,
+            "links": list(self.links),
             "verdict": self.verdict,
             "delay": self.delay,
             "h_min": num(self.h_min),
@@ -129,6 +131,8 @@ def link_groups(scenario: Any, build: Any) -> list[LinkGroup]:
 def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConfig) -> LinkVerdict:
     """Accept (and assign the update period) or reject ``group`` with its links' ``delays``."""
     d = max((float(delays.get(n, 0.0)) for n in group.links), default=0.0)
+    if math.isinf(d):
+        return _reject(group, d, f"links {', '.join(group.links)}: a link has no route")
     if not d < config.h_hi:
         return _reject(
             group, d, f"delay {d:g} is not below the longest period scanned {config.h_hi:g}"
@@ -159,6 +163,7 @@ def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConf
     )
     return LinkVerdict(
         group.name,
+        group.links,
         "accept",
         d,
         r.h_min,
@@ -171,4 +176,5 @@ def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConf
 
 
 def _reject(group: LinkGroup, d: float, reason: str) -> LinkVerdict:
-    return LinkVerdict(group.name, "reject", d, math.nan, math.nan, None, None, {}, (reason,))
+    nan = math.nan
+    return LinkVerdict(group.name, group.links, "reject", d, nan, nan, None, None, {}, (reason,))

@@ -61,8 +61,9 @@ class LoopModel:
 
         self._scenario_type = Scenario
         self.config = config
-        self.loops: tuple[str, ...] = tuple(sorted(scenario.loops))
-        self.benchmark = {n: lp.tau_s for n, lp in sorted(scenario.loops.items())}
+        # loops of multi-loop controllers on links are governed by their update period instead
+        self.loops: tuple[str, ...] = tuple(scenario.simulated_loops())
+        self.benchmark = {n: scenario.loops[n].tau_s for n in self.loops}
         if config.test is not None:
             steps = [s.model_dump() for s in config.test.setpoints]
             end_time = config.test.end_time
@@ -70,7 +71,7 @@ class LoopModel:
             steps = [s.model_dump() for s in scenario.setpoints]
             end_time = scenario.end_time
         for i, step in enumerate(steps):
-            if step["loop"] not in scenario.loops:
+            if step["loop"] not in self.loops:
                 raise ValueError(
                     f"test.setpoints[{i}].loop: unknown loop {step['loop']!r} "
                     f"(loops: {list(self.loops)})"
@@ -85,13 +86,15 @@ class LoopModel:
                 "loop by the overshoot of its step"
             )
         data = scenario.model_dump()
-        nodes = {
-            n: cfg for n, cfg in data["nodes"].items() if cfg["kind"] in ("plant", "controller")
-        }
+        plants = {scenario.loops[n].plant for n in self.loops}
+        controllers = {scenario.loops[n].controller for n in self.loops}
+        nodes = {n: cfg for n, cfg in data["nodes"].items() if n in plants | controllers}
         nodes[_NET] = {"kind": "network"}
         nodes[_OPERATOR] = {"kind": "operator"}
         loops = {}
         for n, lp in data["loops"].items():
+            if n not in self.loops:
+                continue
             loops[n] = {
                 **lp,
                 "network": _NET,

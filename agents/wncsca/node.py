@@ -44,7 +44,25 @@ class WncscaNode(Node):
             self.subscribe(keys.setpoint(loop), None, self._on_setpoint(loop))
             if loop in self.core.config.alarm:
                 self.subscribe(keys.meas(loop), Sample, self._on_meas(loop))
-        self.at(0, self._publish_rates)
+        self._initial_links = self.core.govern_links()  # wired links: judged before the run
+        for v in self._initial_links:
+            (self.log.info if v.verdict == "accept" else self.log.warning)("%s", v.reasons[0])
+        self.at(0, self._start)
+
+    def _start(self) -> None:
+        for v in self._initial_links:
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(
+                    subject="links",
+                    verdict=v.verdict,
+                    reasons=v.reasons,
+                    delays={n: v.delay for n in v.links},
+                    offending=() if v.verdict == "accept" else v.links,
+                    links=(v.as_dict(),),
+                ),
+            )
+        self._publish_rates()
 
     def _on_proposal(self, env: RawEnvelope, body: Any) -> None:
         t0 = time.perf_counter()
@@ -141,6 +159,7 @@ class WncscaNode(Node):
                 bounds=d.bounds,
                 offending=d.offending,
                 paths=paths,
+                links=tuple(v.as_dict() for v in neg.links),
             ),
         )
 
@@ -161,6 +180,7 @@ class WncscaNode(Node):
                 overshoot_pct={n: _finite(v) for n, v in self.core.predicted.items()},
                 assignment=assignment,
                 energy=neg.energy if neg is not None else None,
+                link_periods={n: to_ticks(h) for n, h in sorted(self.core.link_periods.items())},
             ),
         )
 

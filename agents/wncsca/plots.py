@@ -130,8 +130,12 @@ def run_plots(
                 lw=1.2,
                 label=f"{loop}: negotiated control period",
             )
+        links = sorted(assignments[0].get("link_periods", {}))
+        for k, link in enumerate(links, start=len(loops)):
+            hs = [a["link_periods"][link] for a in assignments]
+            ax.step(ts, [*hs, hs[-1]], where="post", color=f"C{k}", ls="--", label=f"link {link}")
         for a, t_next in zip(assignments, ts[1:], strict=True):
-            if not any(a["closed"].values()):
+            if a["closed"] and not any(a["closed"].values()):
                 ax.axvspan(a["t"], t_next, color="0.9", lw=0)
         marks = {
             "accept": ("g", "^"),
@@ -145,7 +149,7 @@ def run_plots(
                 ax.plot([d["t"]], [0.03], m, color=c, ms=9, transform=ax.get_xaxis_transform())
         ax.set_yscale("log")
         ax.set_xlabel(f"time [{unit}]")
-        ax.set_ylabel(f"sampling period [{unit}]")
+        ax.set_ylabel(f"sampling / update period [{unit}]")
         ax.set_title(
             "WNCSCA: periods (grey: loops open; ^ accepted, v rejected proposals)", fontsize=9
         )

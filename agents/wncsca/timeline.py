@@ -65,6 +65,7 @@ def format_timeline(summary: dict[str, Any]) -> str:
             tuple(a["periods"].items()),
             tuple(a["closed"].items()),
             tuple(a["control_periods"].items()),
+            tuple(a.get("link_periods", {}).items()),
         )
         if state == previous:
             continue
@@ -74,9 +75,13 @@ def format_timeline(summary: dict[str, Any]) -> str:
             if all(a["closed"].values())
             else ("open (outputs held)" if not any(a["closed"].values()) else str(a["closed"]))
         )
-        line = f"rates: mode {a['mode']}, periods {_periods(a['periods'])} {unit}, loops {loops}"
+        line = f"rates: mode {a['mode']}"
+        if a["periods"]:
+            line += f", periods {_periods(a['periods'])} {unit}, loops {loops}"
         if a["control_periods"] != a["periods"]:
             line += f" (control periods {_periods(a['control_periods'])} {unit})"
+        if a.get("link_periods"):
+            line += f", update periods of links {_periods(a['link_periods'])} {unit}"
         if a.get("search"):
             s = a["search"]
             os_ = ", ".join(
