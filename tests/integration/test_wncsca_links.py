@@ -4,9 +4,13 @@ controllers follow; the run then equals the direct engine's run at the assigned 
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from agents.update_period.analysis import CSTRRecycleCase
+from agents.update_period.delay import DelayedUpdates, find_h_range
+from controllers.qdc import QDCNetwork, closed_loop_matrices
 from runtime.direct import simulate
 from runtime.errors import ConfigError
 from runtime.launcher import launch
@@ -73,3 +77,46 @@ def test_linked_controllers_need_the_agents_links_setting(tmp_path):
 
     with pytest.raises(ConfigError, match="margin"):
         load_scenario(write_variant(tmp_path, AGENT, "c.yaml", bad_margin))
+
+
+def test_agent_follows_a_changing_wsn(tmp_path):
+    """cstr_recycle_qdc_wncs.yaml, its events moved earlier: at every proposal (start, relay r
+    down, r back up) the agent sets h = margin x h_max(d) for the proposal's link delay, and the
+    controllers transmit at that period from their next send."""
+    import sqlite3
+
+    def early(d):
+        d["end_time"] = 0.3
+        d["nodes"]["wsn"]["events"] = [
+            {"t": 0.1, "event": {"type": "node_down", "node": "r"}},
+            {"t": 0.2, "event": {"type": "node_up", "node": "r"}},
+        ]
+
+    path = write_variant(tmp_path, SCENARIOS / "cstr_recycle_qdc_wncs.yaml", "w.yaml", early)
+    res = launch(path, tmp_path / "run", engine="threads")
+    assert res.code == 0, res.error
+    w = res.summary["wncsca"]
+    case = CSTRRecycleCase()
+    system = DelayedUpdates(*closed_loop_matrices(case.plant, QDCNetwork(case.plant, case.gains)))
+    decisions = [d for d in w["decisions"] if d["subject"] == "proposal"]
+    assert [(d["t"], d["verdict"]) for d in decisions] == [
+        (0.0, "accept"),
+        (0.1, "accept"),
+        (0.2, "accept"),
+    ]
+    periods = []
+    for prop, dec in zip(w["proposals"], decisions, strict=True):
+        delay = max(prop["estimates"][f"{n}.link"]["hops"] for n in ("x1", "x2"))
+        want = 0.8 * find_h_range(system, delay).h_max
+        (group,) = dec["links"]
+        assert group["delay"] == pytest.approx(delay)
+        assert group["h"] == pytest.approx(want, rel=1e-6)
+        periods.append(to_ticks(group["h"]))
+    assert periods[1] < periods[0] == periods[2]  # the slow route needs more frequent updates
+    with sqlite3.connect(tmp_path / "run" / "history.sqlite") as conn:
+        sends = [t for (t,) in conn.execute("SELECT t FROM messages WHERE key = 'link/x1/tx'")]
+    gaps = {(a, b - a) for a, b in itertools.pairwise(sends)}
+    assert (0, to_ticks(0.05)) not in gaps  # the scenario's unsafe period was never used
+    for start, period in zip((0, to_ticks(0.1), to_ticks(0.2)), periods, strict=True):
+        later = [g for a, g in gaps if a >= start + period]
+        assert period in later

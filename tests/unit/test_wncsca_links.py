@@ -10,10 +10,12 @@ import pytest
 from pydantic import ValidationError
 
 from agents.update_period.analysis import CSTRRecycleCase
-from agents.update_period.delay import DelayedUpdates
+from agents.update_period.delay import DelayedUpdates, find_h_range
 from agents.wncsca.config import LinksConfig, WncscaConfig
 from agents.wncsca.links import judge_links, link_groups
 from controllers.qdc import QDCNetwork, closed_loop_matrices
+from runtime.scenario import load_scenario
+from tests.conftest import SCENARIOS
 
 CASE = CSTRRecycleCase()
 H_MAX = CASE.h_max("qdc").h_max
@@ -93,3 +95,75 @@ def test_links_config_is_validated():
 def test_delayed_updates_refuse_mismatched_shapes():
     with pytest.raises(ValueError, match="square"):
         DelayedUpdates(np.eye(3), np.eye(2))
+
+
+# -- the coordinator: proposals of a gateway carrying links ---------------------------------------
+
+WNCS_QDC = SCENARIOS / "cstr_recycle_qdc_wncs.yaml"
+
+
+def _link_path(delay, hops=2):
+    return {"hops": hops, "route": [], "estimates": {"hops": delay}}
+
+
+@pytest.fixture(scope="module")
+def coordinator():
+    from agents.wncsca.coordinator import Coordinator
+
+    return Coordinator(load_scenario(WNCS_QDC))
+
+
+def test_the_coordinator_builds_the_group_from_the_controllers_laws(coordinator):
+    (group,) = coordinator.link_groups
+    assert group.controllers == ("unit1", "unit2") and group.links == ("x1", "x2")
+    ref = _Law().closed_loop()  # the analysis' own CSTR case, built apart from the laws
+    np.testing.assert_allclose(group.system.Acl, ref[0], rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(group.system.Rcl, ref[1])
+    assert coordinator.loops == ()  # nothing to simulate: every loop is a linked controller's
+    assert coordinator.govern_links() == []  # the links are on the gateway: wait for proposals
+
+
+def test_a_proposal_sets_the_update_period_from_the_links_delay(coordinator):
+    config = coordinator.config.links
+    for pid, d in enumerate((0.0009, 0.0094, 0.0009)):
+        neg = coordinator.on_proposal(
+            "wsn", {"id": pid, "paths": {"x1.link": _link_path(d), "x2.link": _link_path(d / 2)}}
+        )
+        assert neg.decision.verdict == "accept", neg.decision.reasons
+        want = find_h_range(DelayedUpdates(*_Law().closed_loop()), d, h_hi=config.h_hi)
+        assert coordinator.link_periods == {
+            "x1": pytest.approx(config.margin * want.h_max, rel=1e-6),
+            "x2": pytest.approx(config.margin * want.h_max, rel=1e-6),
+        }
+        assert neg.decision.delays == {"x1": d, "x2": d}
+    assert neg.assignment is None  # no loop to negotiate
+
+
+def test_a_proposal_no_period_can_live_with_is_rejected_and_changes_nothing(coordinator):
+    before = dict(coordinator.link_periods)
+    neg = coordinator.on_proposal(
+        "wsn", {"id": 7, "paths": {"x1.link": _link_path(0.08, 5), "x2.link": _link_path(0.001)}}
+    )
+    assert neg.decision.verdict == "reject"
+    assert neg.decision.offending == ("x1", "x2")
+    assert "no update period" in neg.decision.reasons[-1]
+    down = coordinator.on_proposal(
+        "wsn", {"id": 8, "paths": {"x1.link": _link_path(None, -1), "x2.link": _link_path(0.001)}}
+    )
+    assert down.decision.verdict == "reject" and "no route" in down.decision.reasons[-1]
+    assert coordinator.link_periods == before
+
+
+@pytest.mark.parametrize(
+    ("paths", "why"),
+    [
+        ({"x1.link": _link_path(0.001)}, "paths.x2.link: missing"),
+        ({"x1.link": _link_path(-0.001), "x2.link": _link_path(0.001)}, "must be >= 0"),
+        ({"x1.link": "fast", "x2.link": _link_path(0.001)}, "expected a mapping"),
+    ],
+)
+def test_a_malformed_link_path_is_refused(coordinator, paths, why):
+    before = dict(coordinator.link_periods)
+    neg = coordinator.on_proposal("wsn", {"id": 9, "paths": paths})
+    assert neg.decision.verdict == "refuse" and why in neg.decision.reasons[0]
+    assert coordinator.link_periods == before
