@@ -301,6 +301,11 @@ class QDCLaw:
         (:mod:`agents.wncsca.links`); every unit's law of one design returns the same."""
         return closed_loop_matrices(self.plant_units, self.network)
 
+    def networked_model(self) -> tuple[LinearUnits, QDCNetwork]:
+        """The true linearization and the units' controllers (what the sampled-data test of
+        :mod:`agents.update_period.sampled` is built from)."""
+        return self.plant_units, self.network
+
 
 def _unit_index(plant: Any, k: int, unit: UnitSignals) -> tuple[list[int], list[int], list[int]]:
     out = []

@@ -95,10 +95,12 @@ class LinksConfig(BaseModel):
 
     model_config = _STRICT
 
-    analysis: Literal["spectral_radius"] = Field(
+    analysis: Literal["spectral_radius", "sampled"] = Field(
         default="spectral_radius",
-        description="rho(M_d(h)) < 1 with the links' delay (seed 001 eq. (8), extended to delayed "
-        "updates in agents/update_period/delay.py)",
+        description="spectral_radius: rho(M_d(h)) < 1 with the links' delay, continuous-time "
+        "local loops (seed 001 eq. (8), delayed updates: agents/update_period/delay.py); "
+        "sampled: the loop as the platform runs it, sampled measurements and held moves, h a "
+        "multiple of the controllers' tau_s (agents/update_period/sampled.py)",
     )
     margin: float = Field(
         default=0.9, gt=0, lt=1, description="assigned period = margin x the largest allowable one"

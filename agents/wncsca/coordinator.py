@@ -107,7 +107,9 @@ class Coordinator:
         }
         # linked controllers (seed 001): update periods by the spectral-radius test
         self.link_groups: list[LinkGroup] = (
-            link_groups(scenario, scenario.multi_loop_law) if self.config.links else []
+            link_groups(scenario, scenario.multi_loop_law, self.config.links.analysis)
+            if self.config.links
+            else []
         )
         self.link_delays: dict[str, float] = {
             n: lk.delay

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from agents.update_period.delay import DelayedUpdates, HRange, find_h_range
+from agents.update_period.sampled import SampledQDC
 from agents.wncsca.config import LinksConfig
 
 __all__ = ["LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
@@ -31,12 +32,14 @@ __all__ = ["LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
 
 @dataclass(frozen=True)
 class LinkGroup:
-    """Controllers joined by links, and their networked loop."""
+    """Controllers joined by links, and their networked loop (continuous-time local loops; and
+    as sampled, when the sampled analysis is asked for)."""
 
     name: str
     controllers: tuple[str, ...]
     links: tuple[str, ...]
     system: DelayedUpdates
+    sampled: SampledQDC | None = None
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,7 @@ class LinkVerdict:
         }
 
 
-def link_groups(scenario: Any, build: Any) -> list[LinkGroup]:
+def link_groups(scenario: Any, build: Any, analysis: str = "spectral_radius") -> list[LinkGroup]:
     """The scenario's groups of linked controllers.
 
     Parameters
@@ -81,7 +84,11 @@ def link_groups(scenario: Any, build: Any) -> list[LinkGroup]:
         With ``links:`` (each ``from``/``to`` a controller node).
     build : callable
         ``build(controller) -> law`` (the law the controller node runs); the law of every
-        controller of a group offers ``closed_loop() -> (Acl, Rcl)``.
+        controller of a group offers ``closed_loop() -> (Acl, Rcl)``, and for the ``sampled``
+        analysis ``networked_model() -> (plant, network)``.
+    analysis : {"spectral_radius", "sampled"}
+        With ``sampled`` the groups also carry the sampled-data loop at the controllers'
+        sampling period (``scenario.multi_loop_tau_s``, one per group).
 
     Raises
     ------
@@ -124,8 +131,24 @@ def link_groups(scenario: Any, build: Any) -> list[LinkGroup]:
                     "linked controllers must share the design settings"
                 )
         names = tuple(sorted(n for n, lk in links.items() if lk.from_ in ctrls or lk.to in ctrls))
-        groups.append(LinkGroup("+".join(ctrls), tuple(ctrls), names, system))
+        sampled = _sampled(scenario, ctrls, law) if analysis == "sampled" else None
+        groups.append(LinkGroup("+".join(ctrls), tuple(ctrls), names, system, sampled))
     return groups
+
+
+def _sampled(scenario: Any, ctrls: list[str], law: Any) -> SampledQDC:
+    taus = {c: scenario.multi_loop_tau_s(c) for c in ctrls}
+    if len(set(taus.values())) != 1:
+        raise ValueError(
+            f"links.analysis: sampled needs one sampling period for the linked controllers, "
+            f"got {taus}"
+        )
+    if not hasattr(law, "networked_model"):
+        raise ValueError(
+            f"nodes.{ctrls[0]}.law: type {type(law).__name__} offers no networked_model(); use "
+            "links.analysis: spectral_radius"
+        )
+    return SampledQDC.from_law_parts(*law.networked_model(), taus[ctrls[0]])
 
 
 def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConfig) -> LinkVerdict:
@@ -137,6 +160,8 @@ def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConf
         return _reject(
             group, d, f"delay {d:g} is not below the longest period scanned {config.h_hi:g}"
         )
+    if config.analysis == "sampled":
+        return _judge_sampled(group, d, config)
     r: HRange = find_h_range(group.system, d, h_hi=config.h_hi, n_grid=config.n_grid)
     if not r.feasible:
         return _reject(
@@ -171,6 +196,50 @@ def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConf
         h,
         rho,
         {n: h for n in group.links},
+        (text,),
+    )
+
+
+def _judge_sampled(group: LinkGroup, d: float, config: LinksConfig) -> LinkVerdict:
+    """The sampled-data test: periods ``N tau_s``, the delay rounded up to whole samples."""
+    system = group.sampled
+    if system is None:
+        raise ValueError(f"group {group.name}: built without the sampled loop")
+    tau = system.tau_s
+    n_delay = math.ceil(d / tau - 1e-9)
+    n_hi = max(1, math.floor(config.h_hi / tau + 1e-9))
+    ns = np.arange(1, n_hi + 1)
+    rho = np.array([system.spectral_radius(int(n), n_delay) for n in ns])
+    stable = rho < 1.0
+    links = ", ".join(group.links)
+    if not stable.any():
+        return _reject(
+            group,
+            d,
+            f"links {links}: no update period N x {tau:g} <= {config.h_hi:g} keeps the sampled "
+            f"loop stable with delay {d:g} ({n_delay} samples)",
+        )
+    first = int(np.argmax(stable))
+    after = np.nonzero(~stable[first:])[0]
+    last = n_hi - 1 if after.size == 0 else first + int(after[0]) - 1
+    n_lo, n_max = int(ns[first]), int(ns[last])
+    n = max(n_lo, math.floor(config.margin * n_max + 1e-9))
+    h_max = math.inf if after.size == 0 else n_max * tau
+    text = (
+        f"links {links}: delay {d:.4g} ({n_delay} samples of {tau:g}), sampled loop stable for "
+        f"h = {n_lo * tau:.4g} ... {n_max * tau:.4g}; h = {n} x {tau:g} = {n * tau:.4g} "
+        f"(margin {config.margin:g}; rho = {rho[n - 1]:.3f})"
+    )
+    return LinkVerdict(
+        group.name,
+        group.links,
+        "accept",
+        d,
+        n_lo * tau,
+        h_max,
+        n * tau,
+        float(rho[n - 1]),
+        {k: n * tau for k in group.links},
         (text,),
     )
 

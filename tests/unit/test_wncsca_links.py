@@ -167,3 +167,28 @@ def test_a_malformed_link_path_is_refused(coordinator, paths, why):
     neg = coordinator.on_proposal("wsn", {"id": 9, "paths": paths})
     assert neg.decision.verdict == "refuse" and why in neg.decision.reasons[0]
     assert coordinator.link_periods == before
+
+
+def test_the_sampled_analysis_assigns_a_multiple_of_the_sampling_period(tmp_path):
+    """analysis: sampled: h = floor(margin x N_max) tau_s, N_max from find_h_max_sampled on the
+    analysis' own CSTR case (built apart from the laws); a link delay is rounded up to samples."""
+    from agents.update_period.sampled import SampledQDC, find_h_max_sampled
+    from agents.wncsca.coordinator import Coordinator
+    from tests.conftest import write_variant
+
+    def sampled(d):
+        d["nodes"]["wncsca"]["links"] = {"analysis": "sampled", "margin": 0.9}
+
+    path = write_variant(tmp_path, SCENARIOS / "cstr_recycle_qdc_agent.yaml", "s.yaml", sampled)
+    coord = Coordinator(load_scenario(path))
+    (v,) = coord.govern_links()
+    tau = 0.0005  # the scenario's tau_s
+    ref = SampledQDC.from_law_parts(CASE.plant, QDCNetwork(CASE.plant, CASE.gains), tau)
+    n_max = find_h_max_sampled(ref).n_max
+    assert v.verdict == "accept"
+    assert v.h_max == pytest.approx(n_max * tau)
+    assert v.h == pytest.approx(int(0.9 * n_max) * tau)
+    assert v.rho == pytest.approx(ref.spectral_radius(int(0.9 * n_max)))
+    # a delay of 2.2 samples is judged as 3
+    delayed = judge_links(coord.link_groups[0], {"x1": 2.2 * tau}, coord.config.links)
+    assert delayed.h_max == pytest.approx(find_h_max_sampled(ref, n_delay=3).n_max * tau)
