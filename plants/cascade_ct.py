@@ -49,13 +49,12 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from plants.knots import CHUNK, Knots
+
 if TYPE_CHECKING:
     import control
 
 __all__ = ["CHUNK", "CascadeCTParams", "CascadeCT", "step_response"]
-
-CHUNK = 4096
-"""Disturbance knots drawn per generator call (chunk ``c`` holds knots ``c*CHUNK ...``)."""
 
 
 class CascadeCTParams(BaseModel):
@@ -90,24 +89,6 @@ class CascadeCTParams(BaseModel):
         return self
 
 
-class _Knots:
-    """Unit Gaussian knots ``w_k`` of one disturbance, drawn chunk by chunk, cached."""
-
-    __slots__ = ("_seed", "_stream", "_chunks")
-
-    def __init__(self, seed: int, stream: int) -> None:
-        self._seed, self._stream = seed, stream
-        self._chunks: dict[int, list[float]] = {}
-
-    def __getitem__(self, k: int) -> float:
-        c, i = divmod(k, CHUNK)
-        chunk = self._chunks.get(c)
-        if chunk is None:
-            rng = np.random.default_rng([self._seed, self._stream, c])
-            chunk = self._chunks[c] = rng.standard_normal(CHUNK).tolist()
-        return chunk[i]
-
-
 class CascadeCT:
     """The process as a plant object: ``rhs``, ``outputs``, ``equilibrium``, ``linearize``."""
 
@@ -130,9 +111,9 @@ class CascadeCT:
         self._g1 = p.d1_std * math.sqrt(2.0 * p.d1_tau / p.noise_period)
         self._g2 = p.d2_std * math.sqrt(2.0 * p.d2_tau / p.noise_period)
         self._g3 = p.d3_std * math.sqrt(2.0 * p.d3_tau / p.noise_period)
-        self._w1 = _Knots(p.seed, 1)
-        self._w2 = _Knots(p.seed, 2)
-        self._w3 = _Knots(p.seed, 3)
+        self._w1 = Knots(p.seed, 1)
+        self._w2 = Knots(p.seed, 2)
+        self._w3 = Knots(p.seed, 3)
 
     # -- disturbances ---------------------------------------------------------------------------
     def noise(self, t: float) -> tuple[float, float, float]:

@@ -43,11 +43,10 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from plants.column import SECTION_631_SPREAD, THESIS_A_M, THESIS_B_M
+from plants.knots import CHUNK, Knots
 
 __all__ = ["CHUNK", "PerturbedReducedParams", "PerturbedReduced"]
 
-CHUNK = 4096
-"""Disturbance knots drawn per generator call (chunk ``c`` holds knots ``c*CHUNK ...``)."""
 
 Matrix2 = tuple[tuple[float, float], tuple[float, float]]
 
@@ -110,24 +109,6 @@ class _Draws:
         return self._list[k]
 
 
-class _Knots:
-    """Unit Gaussian knots of one disturbance, drawn chunk by chunk, cached."""
-
-    __slots__ = ("_seed", "_stream", "_chunks")
-
-    def __init__(self, seed: int, stream: int) -> None:
-        self._seed, self._stream = seed, stream
-        self._chunks: dict[int, list[float]] = {}
-
-    def __getitem__(self, k: int) -> float:
-        c, i = divmod(k, CHUNK)
-        chunk = self._chunks.get(c)
-        if chunk is None:
-            rng = np.random.default_rng([self._seed, self._stream, c])
-            chunk = self._chunks[c] = rng.standard_normal(CHUNK).tolist()
-        return chunk[i]
-
-
 class PerturbedReduced:
     """The plant object: ``rhs``, ``rhs_tuple``, ``outputs``, ``matrices``, ``disturbance``.
 
@@ -147,7 +128,7 @@ class PerturbedReduced:
         self._period = p.redraw_period
         self._d_std = p.d_std
         self._noisy = any(s > 0.0 for s in p.d_std)
-        self._knots = (_Knots(p.seed, 1), _Knots(p.seed, 2))
+        self._knots = (Knots(p.seed, 1), Knots(p.seed, 2))
 
     # -- time-varying parameters and disturbances ---------------------------------------------
     def _ab(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:

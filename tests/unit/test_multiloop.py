@@ -411,7 +411,7 @@ def test_a_coordination_agent_does_not_govern_a_multi_loop_controller(tmp_path):
             loop["controller"] = "mrac"
 
     path = write_variant(tmp_path, SCENARIOS / "jcstr_wncs.yaml", "agent.yaml", one_mrac)
-    with pytest.raises(ConfigError, match=r"nodes.mrac.loops: the coordination agent governs"):
+    with pytest.raises(ConfigError, match=r"nodes.mrac.loops: the coordination agent simulates"):
         load_scenario(path)
 
 
