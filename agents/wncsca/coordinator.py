@@ -105,7 +105,7 @@ class Coordinator:
             for lp in self.loops
             if scenario.nodes[scenario.loops[lp].network].kind == "network"
         }
-        # linked controllers (seed 001): update periods by the spectral-radius test
+        # linked controllers (seed 001): update periods by analysis (agents/wncsca/links.py)
         self.link_groups: list[LinkGroup] = (
             link_groups(scenario, scenario.multi_loop_law, self.config.links.analysis)
             if self.config.links
@@ -117,7 +117,6 @@ class Coordinator:
             if scenario.nodes[lk.network].kind == "network"
         }
         self.link_periods: dict[str, float] = {n: lk.period for n, lk in scenario.links.items()}
-        self.link_verdicts: dict[str, LinkVerdict] = {}
         self._bounds: dict[str, DelayBound] | None = None
         self.setpoints = {n: lp.setpoint for n, lp in scenario.loops.items()}
         self._strikes = {n: 0 for n in self.loops}
@@ -130,19 +129,15 @@ class Coordinator:
         return self._bounds
 
     # -- links (seed 001) ------------------------------------------------------------------
-    def govern_links(self, network: str | None = None) -> list[LinkVerdict]:
-        """Judge the link groups (those with a link over ``network``, or every group whose
-        links are all wired when ``None``) at the current link delays; an accepted group's
-        update period becomes the assigned one."""
+    def govern_links(self) -> list[LinkVerdict]:
+        """Judge the link groups whose links are all wired (their delays are known before the
+        run; a gateway's come with its proposals); an accepted group's update period becomes
+        the assigned one."""
         out = []
         for group in self.link_groups:
-            nets = {self.scenario.links[n].network for n in group.links}
-            if (network is None and any(n not in self.link_delays for n in group.links)) or (
-                network is not None and network not in nets
-            ):
+            if any(n not in self.link_delays for n in group.links):
                 continue
             verdict = judge_links(group, self.link_delays, self.config.links)
-            self.link_verdicts[group.name] = verdict
             if verdict.verdict == "accept":
                 self.link_periods.update(verdict.periods)
             out.append(verdict)
@@ -182,7 +177,6 @@ class Coordinator:
             return Negotiation(decision, network, links=links)
         self.link_delays.update(link_delays)
         for v in links:
-            self.link_verdicts[v.group] = v
             self.link_periods.update(v.periods)
         decision = _with_links(decision, links)
         self.delays.update({n: decision.delays[n] for n in self.carried[network]})
