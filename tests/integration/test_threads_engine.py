@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import msgpack
 
@@ -191,7 +190,10 @@ def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, 
 
     class Slow(ControllerNode):
         def __init__(self, ctx) -> None:
-            time.sleep(1.5)  # still being built when the clock stops the run
+            # still being built when the clock stops the run: wait for the clock to leave
+            clock = [th for th in threading.enumerate() if th.name == "clock"]
+            for th in clock:
+                th.join(timeout=60)
             super().__init__(ctx)
 
     monkeypatch.setitem(nodes.NODE_CLASSES, "operator", Failing)
