@@ -178,14 +178,18 @@ class PIPCascade:
         self._master.reset()
         self._first = True
 
-    def step(self, t: float, measurements: Mapping[str, float]) -> float:
-        """One execution with the measurements by name; returns ``u``."""
+    def step(
+        self, t: float, measurements: Mapping[str, float], setpoint: float | None = None
+    ) -> float:
+        """One execution with the measurements by name; returns ``u``. ``setpoint`` overrides
+        the configured set point ``r1`` (a set point that changes during a run)."""
         c = self.config
+        r1 = c.setpoint if setpoint is None else setpoint
         y1 = measurements[c.primary]
         if self._first:
-            self._master.integral = c.Kc1 / c.Ti1 * (c.setpoint - y1) * c.dt
+            self._master.integral = c.Kc1 / c.Ti1 * (r1 - y1) * c.dt
             self._first = False
-        r2 = self._master.step(t, y1, c.setpoint)
+        r2 = self._master.step(t, y1, r1)
         u = c.u_bias + c.Kc2 * (r2 - measurements[c.secondary])
         return min(max(u, c.u_min), c.u_max)
 

@@ -32,7 +32,10 @@ govern multi-loop controllers (refused when the scenario loads).
 An **actuator-only** loop (``sensor: null``, for laws that move inputs they do not measure, such
 as seed 001's units: :mod:`controllers.qdc_law`) has no samples: the hold rule waits only for the
 loops with a sensor, ``y`` has no entry for it, and the law's move for it is published on its
-``loop/<l>/u`` like the others.
+``loop/<l>/u`` like the others. A **measurement-only** loop (``actuator: null``, for laws that take
+measurements they move no input for, such as seed 004's PI-P cascade:
+:mod:`controllers.cascade_law`) is sampled, held and passed to the law like any loop (its set
+point too), but the law returns no move for it and the node publishes none.
 
 **Links** (the scenario's ``links:``): the node transmits what its law's ``transmit(t)`` returns
 on ``link/<k>/tx`` for every link it sends on, every ``period`` from ``t = 0`` (a timer, so in
@@ -87,6 +90,7 @@ class ControllerNode(Node):
             self._held: dict[str, tuple[int, float]] = {}  # loop -> (t_sampled, value)
             self._arrived: list[tuple[str, Sample]] = []
             self._measured = [n for n in self.loops if self.scenario.loops[n].sensor is not None]
+            self._moved = [n for n in self.loops if self.scenario.loops[n].actuator is not None]
             for name in self._measured:
                 self.subscribe(keys.meas(name), Sample, self._on_meas_of(name))
             self._end = to_ticks(self.scenario.end_time)
@@ -208,5 +212,5 @@ class ControllerNode(Node):
         y = {n: self._held[n][1] for n in self._measured}
         r = {n: self.setpoints[n] for n in self.loops}
         u = self.law.step(to_units(self.now), y, r)
-        for name in self.loops:
+        for name in self._moved:
             self.publish(keys.move(name), Move(value=u[name], t_computed=self.now))

@@ -12,7 +12,9 @@ every loop; it may have a static ``check_loops(config, loops)`` that refuses a l
 (``ValueError``) and a classmethod ``from_config(config, *, loops, plant, tau_s, context)``
 (``context``: :class:`MultiLoopContext`, the loops' signals and the controller's links). A law
 with ``actuator_only_loops = True`` accepts loops without a sensor (``sensor: null``: it moves
-their input, and ``y`` has no entry for them). A law that exchanges data with other controllers
+their input, and ``y`` has no entry for them); one with ``measurement_only_loops = True`` accepts
+loops without an actuator (``actuator: null``: ``y`` and ``r`` have entries for them, ``u`` has
+none, and no move is published). A law that exchanges data with other controllers
 over the scenario's ``links:`` has ``transmit(t) -> list[float]`` (what it sends on its links)
 and ``receive(t, link, values)`` (what arrived on one).
 """
@@ -25,6 +27,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field
 
+from controllers.cascade_law import PIPCascadeLaw, PIPCascadeLawConfig
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
 from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
@@ -36,6 +39,7 @@ __all__ = [
     "LawConfig",
     "MultiLoopContext",
     "accepts_actuator_only_loops",
+    "accepts_measurement_only_loops",
     "exchanges_estimates",
     "build_law",
     "build_multi_loop_law",
@@ -51,10 +55,17 @@ LAWS: dict[str, type[Any]] = {
     "stnlpi": SelfTuningNLPI,  # seed 002: EW-RLS self-tuning non-linear PI
     "mrac": MultiLoopMRAC,  # seed 003: model-reference adaptive control (multi-loop)
     "qdc": QDCLaw,  # seed 001: a unit's quasi-decentralized local control system (multi-loop)
+    "pip_cascade": PIPCascadeLaw,  # seed 004: PI-P cascade, primary and secondary (multi-loop)
 }
 
 LawConfig = Annotated[
-    PIConfig | NLPIConfig | PI2DOFConfig | STNLPIConfig | MRACConfig | QDCLawConfig,
+    PIConfig
+    | NLPIConfig
+    | PI2DOFConfig
+    | STNLPIConfig
+    | MRACConfig
+    | QDCLawConfig
+    | PIPCascadeLawConfig,
     Field(discriminator="type"),
 ]
 """The discriminated union of every law's configuration (``PIConfig | OtherConfig | ...``)."""
@@ -68,12 +79,12 @@ class MultiLoopContext:
     ----------
     signals : mapping
         Loop -> ``(sensor, actuator)``: the plant output it measures (``None`` for an
-        actuator-only loop) and the input it moves.
+        actuator-only loop) and the input it moves (``None`` for a measurement-only loop).
     sends, receives : tuple of str
         The links (``links:``) the controller transmits on and receives, by name.
     """
 
-    signals: Mapping[str, tuple[str | None, str]] = field(default_factory=dict)
+    signals: Mapping[str, tuple[str | None, str | None]] = field(default_factory=dict)
     sends: tuple[str, ...] = ()
     receives: tuple[str, ...] = ()
 
@@ -81,6 +92,11 @@ class MultiLoopContext:
 def accepts_actuator_only_loops(config: BaseModel) -> bool:
     """Whether the law of ``config`` accepts loops without a sensor (``sensor: null``)."""
     return bool(getattr(LAWS[config.type], "actuator_only_loops", False))  # type: ignore[attr-defined]
+
+
+def accepts_measurement_only_loops(config: BaseModel) -> bool:
+    """Whether the law of ``config`` accepts loops without an actuator (``actuator: null``)."""
+    return bool(getattr(LAWS[config.type], "measurement_only_loops", False))  # type: ignore[attr-defined]
 
 
 def exchanges_estimates(config: BaseModel) -> bool:

@@ -9,7 +9,8 @@ by the node its ``network:`` names:
   (:func:`gateway.paths.deliver`); the actuator path goes back from the gateway to the loop's
   ``actuator_node`` the same way, or is wired (``tau_a``) when the loop names none.
 
-An actuator-only loop (``sensor: null``) has no sensor path. A **link** (the scenario's
+An actuator-only loop (``sensor: null``) has no sensor path; a measurement-only loop
+(``actuator: null``) no actuator path (nothing is ever sent on it). A **link** (the scenario's
 ``links:``, data from one controller to another) naming the node is carried like a sensor path:
 a constant ``delay`` over a wired network, or routed over the topology from its ``source_node``
 to its ``dest_node`` (path ``<link>.link``).

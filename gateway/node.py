@@ -81,11 +81,12 @@ class NetworkNode(Node):
                     Sample,
                     self._path(name, SENSOR, keys.meas(name)),
                 )
-            self.subscribe(
-                keys.move(name),
-                Move,
-                self._path(name, ACTUATOR, keys.actuator(loop.plant, loop.actuator)),
-            )
+            if loop.actuator is not None:  # a measurement-only loop has no actuator path
+                self.subscribe(
+                    keys.move(name),
+                    Move,
+                    self._path(name, ACTUATOR, keys.actuator(loop.plant, loop.actuator)),
+                )
 
         for name in self.carrier.links:
             self.subscribe(keys.link_tx(name), Estimate, self._path(name, LINK, keys.link_rx(name)))

@@ -86,7 +86,7 @@ class _Loop:
     name: str
     plant: _Plant
     y_index: int | None  # None: an actuator-only loop (never sampled)
-    u_index: int
+    u_index: int | None  # None: a measurement-only loop (never moved)
     tau_s: int
     carrier: Any  # gateway.carrier.PathCarrier of the loop's network node
     law: Any
@@ -184,7 +184,9 @@ def simulate(scenario: Scenario) -> RunRecord:
             name=name,
             plant=plant,
             y_index=plant.model.output_names.index(lp.sensor) if sensed else None,
-            u_index=plant.model.input_names.index(lp.actuator),
+            u_index=(
+                plant.model.input_names.index(lp.actuator) if lp.actuator is not None else None
+            ),
             tau_s=to_ticks(lp.tau_s) if lp.tau_s is not None else 0,
             carrier=carriers[lp.network],
             law=(
@@ -434,6 +436,8 @@ def _execute_multi(mc: _MultiController, t: int, setpoints: dict[str, float], or
             {lp.name: setpoints[lp.name] for lp in mc.loops},
         )
         for lp in mc.loops:
+            if lp.u_index is None:
+                continue  # a measurement-only loop: no move, its samples are recorded with none
             moves[lp.name].append(u[lp.name])
             if lp.y_index is None:  # an actuator-only loop: one record entry per move
                 rec = lp.record

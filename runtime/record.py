@@ -30,7 +30,8 @@ class LoopRecord:
     """One loop: every delivered sample and the control move computed from it.
 
     An actuator-only loop (``sensor`` ``None``) has one entry per move instead: ``t`` (and
-    ``t_sampled``) the time it was computed, ``y`` ``None``.
+    ``t_sampled``) the time it was computed, ``y`` ``None``. A measurement-only loop
+    (``actuator: null``) records its delivered samples with ``u`` ``None`` (no move is made).
     """
 
     plant: str

@@ -14,7 +14,10 @@ Shape (see ``scenarios/jcstr_benchmark.yaml``)::
 
 A loop with ``sensor: null`` is an **actuator-only** loop: one input of a multi-loop controller
 whose law moves inputs it does not measure (seed 001's units measure a temperature and move a heat
-input and a feed concentration); it has no sampling, no sensor path and no step figures. A **link**
+input and a feed concentration); it has no sampling, no sensor path and no step figures. A loop
+with ``actuator: null`` is **measurement-only**: a measurement a multi-loop controller takes in
+without moving an input for it (the secondary of seed 004's PI-P cascade); it is sampled and
+delivered like any loop, but no move is published for it and it has no actuator path. A **link**
 carries what one multi-loop controller's law transmits (``transmit(t)``, every ``period``) to
 another (``receive(t, link, values)``) over a network node, like a sensor path.
 
@@ -37,6 +40,7 @@ from controllers.registry import (
     LawConfig,
     MultiLoopContext,
     accepts_actuator_only_loops,
+    accepts_measurement_only_loops,
     build_multi_loop_law,
     check_loops,
     exchanges_estimates,
@@ -285,7 +289,10 @@ class LoopConfig(BaseModel):
         description="plant output measured by the loop's sensor; null: an actuator-only loop "
         "(an input of a multi-loop controller that it does not measure)"
     )
-    actuator: str = Field(description="plant input moved by the loop's controller")
+    actuator: str | None = Field(
+        description="plant input moved by the loop's controller; null: a measurement-only loop "
+        "(a measurement of a multi-loop controller that moves no input for it)"
+    )
     controller: str = Field(description="name of the controller node")
     network: str = Field(description="network node carrying the loop's sensor and actuator paths")
     tau_s: float | None = Field(
@@ -309,6 +316,21 @@ class LoopConfig(BaseModel):
 
     @model_validator(mode="after")
     def _sensor_or_not(self) -> LoopConfig:
+        if self.actuator is None:
+            if self.sensor is None:
+                raise ValueError(
+                    "actuator: a loop without a sensor must move an input (sensor and actuator "
+                    "both null)"
+                )
+            for field, value, default in (
+                ("tau_a", self.tau_a, 0.0),
+                ("actuator_node", self.actuator_node, None),
+            ):
+                if value != default:
+                    raise ValueError(
+                        f"{field}: a measurement-only loop (actuator: null) moves nothing; leave "
+                        f"{field} out"
+                    )
         if self.sensor is not None:
             for field in ("tau_s", "setpoint"):
                 if getattr(self, field) is None:
@@ -330,6 +352,11 @@ class LoopConfig(BaseModel):
     def has_sensor(self) -> bool:
         """Whether the loop measures something (``False``: an actuator-only loop)."""
         return self.sensor is not None
+
+    @property
+    def has_actuator(self) -> bool:
+        """Whether the loop moves an input (``False``: a measurement-only loop)."""
+        return self.actuator is not None
 
 
 class LinkConfig(BaseModel):
@@ -471,7 +498,15 @@ class Scenario(BaseModel):
                     f"{at}.sensor: plant {loop.plant!r} has no output {loop.sensor!r} "
                     f"(outputs: {list(plant.output_names)})"
                 )
-            if loop.actuator not in plant.input_names:
+            if loop.actuator is None:
+                if ctrl.loops is None or not accepts_measurement_only_loops(ctrl.law):
+                    raise ValueError(
+                        f"{at}.actuator: null (a measurement-only loop) is allowed only for a "
+                        "loop of a multi-loop controller whose law takes measurements it moves "
+                        f"no input for; node {loop.controller!r} (law {ctrl.law.type!r}) needs "
+                        "an actuator"
+                    )
+            elif loop.actuator not in plant.input_names:
                 raise ValueError(
                     f"{at}.actuator: plant {loop.plant!r} has no input {loop.actuator!r} "
                     f"(inputs: {list(plant.input_names)})"
@@ -528,6 +563,11 @@ class Scenario(BaseModel):
                     f"nodes.{name}.loops: every loop is actuator-only (sensor: null); the law "
                     "executes on samples and would never move"
                 )
+            if all(self.loops[lname].actuator is None for lname in node.loops):
+                raise ValueError(
+                    f"nodes.{name}.loops: every loop is measurement-only (actuator: null); the "
+                    "controller would never move an input"
+                )
             agent = self.agent_node()
             linked = any(name in (lk.from_, lk.to) for lk in self.links.values())
             if agent is not None and not (linked and self.nodes[agent].links is not None):
@@ -555,7 +595,7 @@ class Scenario(BaseModel):
                     raise ValueError(
                         f"nodes.{name}.loop: loop {node.loop!r} is actuator-only (no samples)"
                     )
-        moved = {(lp.plant, lp.actuator) for lp in self.loops.values()}
+        moved = {(lp.plant, lp.actuator) for lp in self.loops.values() if lp.actuator is not None}
         for i, dist in enumerate(self.disturbances):
             at = f"disturbances[{i}]"
             plant_cfg = node_of("plant", dist.plant, f"{at}.plant")

@@ -57,6 +57,7 @@ __all__ = [
     "assess_series",
     "feed_history",
     "feed_record",
+    "feed_run_record",
 ]
 
 SP_SUFFIX = ".sp"
@@ -455,7 +456,11 @@ def feed_record(path: str | Path, series: RunSeries, *, until: int) -> int:
     Returns the messages fed."""
     from runtime.report import load_saved_record
 
-    rec = load_saved_record(Path(path).parent)
+    return feed_run_record(load_saved_record(Path(path).parent), series, until=until)
+
+
+def feed_run_record(rec: Any, series: RunSeries, *, until: int) -> int:
+    """:func:`feed_record` on a :class:`runtime.record.RunRecord` in memory (a direct run)."""
     events: list[tuple[int, int, str, BaseModel]] = []
     subs = dict(series.subscriptions())
     for name, plant in rec.plants.items():
