@@ -639,7 +639,22 @@ class Scenario(BaseModel):
         self._check_feedforward()
         self._check_links()
         self._check_multi_loop_laws()
+        self._check_agent_links()
         return self
+
+    def _check_agent_links(self) -> None:
+        """The analysis an agent with ``links:`` will run needs laws it can analyse (built now,
+        so that a refusal names the agent before anything starts)."""
+        from agents.wncsca.links import link_groups
+
+        agent = self.agent_node()
+        cfg = self.nodes[agent] if agent is not None else None
+        if cfg is None or cfg.links is None:
+            return
+        try:
+            link_groups(self, self.multi_loop_law, cfg.links.analysis)
+        except ValueError as err:
+            raise ValueError(f"nodes.{agent}.links: {err}") from err
 
     def _check_links(self) -> None:
         """Links join two multi-loop controllers whose laws exchange data, over a network node."""

@@ -120,3 +120,12 @@ def test_agent_follows_a_changing_wsn(tmp_path):
     for start, period in zip((0, to_ticks(0.1), to_ticks(0.2)), periods, strict=True):
         later = [g for a, g in gaps if a >= start + period]
         assert period in later
+
+
+def test_a_sampled_analysis_needs_one_sampling_period(tmp_path):
+    def two_periods(d):
+        d["nodes"]["wncsca"]["links"] = {"analysis": "sampled"}
+        d["loops"]["t2"]["tau_s"] = 0.001
+
+    with pytest.raises(ConfigError, match=r"nodes.wncsca.links: links.analysis: sampled needs one"):
+        load_scenario(write_variant(tmp_path, AGENT, "s.yaml", two_periods))
