@@ -27,7 +27,8 @@ executes once per instant at which samples arrive, except at an instant where bo
 arrive: then once for the delayed samples and once more for the zero-delay ones. The ``direct``
 engine executes exactly the same way. The set point of each loop is the law's reference input
 (for the MRAC, ``u_c``; :class:`controllers.mrac.MultiLoopMRAC`). A coordination agent does not
-govern multi-loop controllers (refused when the scenario loads).
+open, close or re-time multi-loop controllers (refused when the scenario loads), except the update
+period of their links (``link_periods``, below).
 
 An **actuator-only** loop (``sensor: null``, for laws that move inputs they do not measure, such
 as seed 001's units: :mod:`controllers.qdc_law`) has no samples: the hold rule waits only for the
