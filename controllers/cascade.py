@@ -44,6 +44,7 @@ __all__ = [
     "pi_tf",
     "SFBPIConfig",
     "SFBPI",
+    "PIPSettings",
     "PIPCascadeConfig",
     "PIPCascade",
     "LinearFeedbackConfig",
@@ -117,19 +118,17 @@ class SFBPI:
         return self._pi.step(t, measurements[c.measurement], c.setpoint)
 
 
-class PIPCascadeConfig(BaseModel):
-    """PI-P cascade (seed 004, Fig. 2): PI master on the primary, P slave on the secondary."""
+class PIPSettings(BaseModel):
+    """Gains and limits of a PI-P cascade: PI master ``(Kc1, Ti1)`` setting the secondary's set
+    point ``r2`` within ``[r2_min, r2_max]``, P slave ``Kc2`` about ``u_bias`` within
+    ``[u_min, u_max]`` (shared by :class:`PIPCascadeConfig` and the platform law's
+    configuration, :class:`controllers.cascade_law.PIPCascadeLawConfig`)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    type: Literal["pi_p_cascade"] = "pi_p_cascade"
-    primary: str = Field(min_length=1)
-    secondary: str = Field(min_length=1)
     Kc1: float = Field(description="master gain, y2 set-point units per y1 unit")
-    Ti1: float = Field(gt=0, description="master integral time")
+    Ti1: float = Field(gt=0, description="master integral time, time units")
     Kc2: float = Field(description="slave (proportional) gain, u units per y2 unit")
-    dt: float = Field(default=1.0, gt=0)
-    setpoint: float = 0.0
     u_bias: float = Field(default=0.0, description="slave output at zero error")
     r2_min: float = -math.inf
     r2_max: float = math.inf
@@ -137,13 +136,27 @@ class PIPCascadeConfig(BaseModel):
     u_max: float = math.inf
 
     @model_validator(mode="after")
-    def _check(self) -> PIPCascadeConfig:
-        if self.primary == self.secondary:
-            raise ValueError(f"secondary must differ from primary ({self.primary!r})")
+    def _limits(self) -> PIPSettings:
         if not self.r2_min < self.r2_max:
             raise ValueError(f"r2_min ({self.r2_min}) must be below r2_max ({self.r2_max})")
         if not self.u_min < self.u_max:
             raise ValueError(f"u_min ({self.u_min}) must be below u_max ({self.u_max})")
+        return self
+
+
+class PIPCascadeConfig(PIPSettings):
+    """PI-P cascade (seed 004, Fig. 2): PI master on the primary, P slave on the secondary."""
+
+    type: Literal["pi_p_cascade"] = "pi_p_cascade"
+    primary: str = Field(min_length=1)
+    secondary: str = Field(min_length=1)
+    dt: float = Field(default=1.0, gt=0)
+    setpoint: float = 0.0
+
+    @model_validator(mode="after")
+    def _check(self) -> PIPCascadeConfig:
+        if self.primary == self.secondary:
+            raise ValueError(f"secondary must differ from primary ({self.primary!r})")
         return self
 
     def feedback(self) -> dict[str, TF]:

@@ -19,39 +19,18 @@ the node then executes once per sampling instant with both new samples (the hold
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-from controllers.cascade import PIPCascade, PIPCascadeConfig
+from controllers.cascade import PIPCascade, PIPCascadeConfig, PIPSettings
 
 __all__ = ["PIPCascadeLawConfig", "PIPCascadeLaw", "cascade_variant", "ROUTINE_CASCADE"]
 
 
-class PIPCascadeLawConfig(BaseModel):
+class PIPCascadeLawConfig(PIPSettings):
     """Settings of the PI-P cascade law (``type: pip_cascade``); the loops come from the node."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
     type: Literal["pip_cascade"]
-    Kc1: float = Field(description="master gain, y2 set-point units per y1 unit")
-    Ti1: float = Field(gt=0, description="master integral time, time units")
-    Kc2: float = Field(description="slave (proportional) gain, u units per y2 unit")
-    u_bias: float = Field(default=0.0, description="slave output at zero error")
-    r2_min: float = -math.inf
-    r2_max: float = math.inf
-    u_min: float = -math.inf
-    u_max: float = math.inf
-
-    @model_validator(mode="after")
-    def _limits(self) -> PIPCascadeLawConfig:
-        if not self.r2_min < self.r2_max:
-            raise ValueError(f"r2_min ({self.r2_min}) must be below r2_max ({self.r2_max})")
-        if not self.u_min < self.u_max:
-            raise ValueError(f"u_min ({self.u_min}) must be below u_max ({self.u_max})")
-        return self
 
 
 class PIPCascadeLaw:
@@ -74,20 +53,9 @@ class PIPCascadeLaw:
         self.check_loops(config, loops)
         self.config = config
         self.primary, self.secondary = loops
+        settings = config.model_dump(exclude={"type"})
         self._cascade = PIPCascade(
-            PIPCascadeConfig(
-                primary=self.primary,
-                secondary=self.secondary,
-                Kc1=config.Kc1,
-                Ti1=config.Ti1,
-                Kc2=config.Kc2,
-                dt=tau_s,
-                u_bias=config.u_bias,
-                r2_min=config.r2_min,
-                r2_max=config.r2_max,
-                u_min=config.u_min,
-                u_max=config.u_max,
-            )
+            PIPCascadeConfig(primary=self.primary, secondary=self.secondary, dt=tau_s, **settings)
         )
 
     @staticmethod

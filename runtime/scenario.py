@@ -322,31 +322,26 @@ class LoopConfig(BaseModel):
                     "actuator: a loop without a sensor must move an input (sensor and actuator "
                     "both null)"
                 )
-            for field, value, default in (
-                ("tau_a", self.tau_a, 0.0),
-                ("actuator_node", self.actuator_node, None),
-            ):
-                if value != default:
-                    raise ValueError(
-                        f"{field}: a measurement-only loop (actuator: null) moves nothing; leave "
-                        f"{field} out"
-                    )
+            self._unset(
+                {"tau_a": 0.0, "actuator_node": None},
+                "a measurement-only loop (actuator: null) moves nothing",
+            )
         if self.sensor is not None:
             for field in ("tau_s", "setpoint"):
                 if getattr(self, field) is None:
                     raise ValueError(f"{field}: Field required (the loop has a sensor)")
             return self
-        for field, value, default in (
-            ("tau_s", self.tau_s, None),
-            ("tau_d", self.tau_d, 0.0),
-            ("sensor_node", self.sensor_node, None),
-        ):
-            if value != default:
-                raise ValueError(
-                    f"{field}: an actuator-only loop (sensor: null) samples nothing; leave "
-                    f"{field} out"
-                )
+        self._unset(
+            {"tau_s": None, "tau_d": 0.0, "sensor_node": None},
+            "an actuator-only loop (sensor: null) samples nothing",
+        )
         return self
+
+    def _unset(self, defaults: dict[str, Any], why: str) -> None:
+        """Refuse a field given a value the loop's kind has no use for (``why``)."""
+        for field, default in defaults.items():
+            if getattr(self, field) != default:
+                raise ValueError(f"{field}: {why}; leave {field} out")
 
     @property
     def has_sensor(self) -> bool:
