@@ -1,15 +1,20 @@
 # Two commands set everything up on a fresh machine: `make demo` and `make test`.
+# Both install from requirements.lock (every dependency, transitive and build ones included,
+# pinned with hashes); `make lock` refreshes it after a change to pyproject.toml's dependencies.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+PIP_TOOLS := pip-tools==7.6.2
+LOCK_VENV := .venv-lock
 
-.PHONY: demo test test-fast lint bench clean
+.PHONY: demo test test-fast lint lock bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --require-hashes --no-deps -r requirements.lock
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(BIN)/python -m pip check
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -24,6 +29,15 @@ test-fast: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
+# Re-resolve every dependency to the newest versions pyproject.toml allows and pin them with
+# hashes. Run it after editing dependencies, or on purpose to take upgrades (then `make test`).
+lock:
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet $(PIP_TOOLS)
+	$(LOCK_VENV)/bin/pip-compile --quiet --generate-hashes --allow-unsafe --all-build-deps \
+		--no-emit-index-url --no-emit-find-links --extra dev --strip-extras \
+		-o requirements.lock pyproject.toml
+
 bench: $(STAMP)
 	$(BIN)/python bench/engines.py
 	$(BIN)/python bench/section3c.py
@@ -33,4 +47,4 @@ bench: $(STAMP)
 	$(BIN)/python bench/wncsca_latency.py
 
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) $(LOCK_VENV) runs

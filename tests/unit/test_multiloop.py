@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from dataclasses import replace
 from types import ModuleType
 
 import numpy as np
@@ -152,22 +153,37 @@ def test_thesis_test_on_the_direct_engine_equals_an_independent_loop():
 def test_nonlinear_column_on_the_direct_engine_equals_bench_column_run(bench):
     """column_mrac_nonlinear.yaml on the direct engine against bench/mrac_study.py's own loop
     (amplitude 1, gamma 100, measured outputs): the same moves and measurements to 1e-12
-    (measured 2.8e-14 kmol/h: the float difference of k*0.1 h and k*100000 ticks)."""
+    (measured 2.8e-14 kmol/h: the float difference of k*0.1 h and k*100000 ticks).
+
+    Two checks, kept apart because their tolerances have different grounds:
+
+    - The scenario states the balanced reduction and the steady state; recomputing them is a
+      *different* computation (Lyapunov solves, SVDs and a Newton solve, whose last bits depend
+      on the BLAS kernels the CPU selects). Rounding perturbs the Gramians of the 16-state
+      Jacobian by about ``n kappa(J) eps = 16 * 515 * 2.2e-16 = 1.8e-12`` relative, and the kept
+      balanced directions move by that over the relative Hankel gap ``(s2 - s3) / s1 = 0.23``:
+      about 8e-12. The reduction is checked at ``rtol=1e-10`` (a decade of margin; measured
+      1.8e-16 on one machine, 1.1e-14 on another). The steady state is a root of ``f(x) = 0``
+      with ``kappa(J) = 515``: ``kappa eps = 1.1e-13``, checked at ``rtol=1e-12``.
+    - The run comparison then hands the bench loop the scenario's own stated matrices, so both
+      engines integrate the same numbers and only the time bookkeeping differs (2.8e-14).
+    """
     col = Column(FITTED_PARAMS)
     xs, us = col.steady_state(), col.nominal_input()
     jx, ju = col.jacobian(xs, us)
     c = np.zeros((2, 16))
     c[0, 15], c[1, 0] = 1.0, 1.0
     red = balanced_reduction(jx, ju, c, 2, "matchdc")
-    ref = bench.column_run(col, red, 100.0, amp=1.0)
     scenario = load_scenario(NONLINEAR)
     law = scenario.nodes["mrac"].law
-    assert_allclose(np.array(law.A_m), red.A, rtol=1e-14)  # the scenario states the reduction
-    assert_allclose(np.array(law.B_m), red.B, rtol=1e-14)
-    assert_allclose(np.array(law.C_m), red.C, rtol=1e-14)
-    assert_allclose(law.y_bar, col.outputs(xs), rtol=1e-15)
+    assert_allclose(np.array(law.A_m), red.A, rtol=1e-10)  # the scenario states the reduction
+    assert_allclose(np.array(law.B_m), red.B, rtol=1e-10)
+    assert_allclose(np.array(law.C_m), red.C, rtol=1e-10)
+    assert_allclose(law.y_bar, col.outputs(xs), rtol=1e-12)
     x0 = scenario.nodes["column"].x0
-    assert_allclose([x0[f"x{i}"] for i in range(1, 17)], xs, rtol=1e-15)
+    assert_allclose([x0[f"x{i}"] for i in range(1, 17)], xs, rtol=1e-12)
+    stated = replace(red, A=np.array(law.A_m), B=np.array(law.B_m), C=np.array(law.C_m))
+    ref = bench.column_run(col, stated, 100.0, amp=1.0)
     rec = simulate(scenario)
     loops = ("top", "bottom")
     assert not ref["diverged"]
