@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from agents.monitor.command import add_assess_arguments, run_from_args
 from runtime.errors import ConfigError, WncsError
 
 __all__ = ["main", "build_parser"]
@@ -112,46 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
         "historian) or a run directory (columns LOOP, LOOP.sp, PLANT.STATE). Exit codes: 0 "
         "assessed, 2 bad input, 3 a part unidentifiable.",
     )
-    assess.add_argument("data", help="CSV file of routine data, or a run directory")
-    assess.add_argument("--primary", required=True, help="primary controlled variable (PV)")
-    assess.add_argument(
-        "--secondary",
-        default="",
-        help="candidate secondary measurements, COL[,COL...] (none: Harris index only)",
-    )
-    assess.add_argument(
-        "--delays",
-        required=True,
-        help="d1,d2 per secondary in order (samples: secondary -> primary, move -> secondary; "
-        "every pair adds up to the delay move -> primary), or d alone without a secondary",
-    )
-    assess.add_argument(
-        "--setpoint", default=None, help="set-point column: analyse the control error SP - PV"
-    )
-    assess.add_argument("--sep", default=";", help="CSV field separator (default ';')")
-    assess.add_argument("--decimal", default=".", help="CSV decimal mark, '.' or ','")
-    assess.add_argument(
-        "--window", type=int, default=None, help="run: the last N samples delivered (default all)"
-    )
-    assess.add_argument(
-        "--start", type=float, default=None, help="run: ignore samples taken before this time"
-    )
-    assess.add_argument(
-        "--until",
-        type=float,
-        default=None,
-        help="run: samples delivered before this time (default the run's end time)",
-    )
-    assess.add_argument("--max-order", type=int, default=30, help="largest AR/VAR order tried")
-    assess.add_argument("--order", type=int, default=None, help="fixed AR/VAR order")
-    assess.add_argument("--criterion", choices=("aic", "bic"), default="aic")
-    assess.add_argument("--method", choices=("ls", "yule_walker"), default="ls")
-    assess.add_argument(
-        "--out",
-        default=None,
-        help="JSON report (default next to the data: "
-        "NAME.assessment.json, or RUN_DIR/assessment_PRIMARY.json)",
-    )
+    add_assess_arguments(assess)
     return parser
 
 
@@ -207,6 +169,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_node(args: argparse.Namespace) -> int:
+from agents.monitor.command import add_assess_arguments, run_from_args
     from runtime.bus import open_client
     from runtime.scenario import load_scenario
 
@@ -223,6 +186,7 @@ def _cmd_node(args: argparse.Namespace) -> int:
     session = open_client(args.connect)
     try:
         if args.name == "clock":
+from agents.monitor.command import add_assess_arguments, run_from_args
             from runtime.clock import ClockRunner
 
             return ClockRunner(session, args.run_id, scenario, realtime=args.realtime).run()
@@ -270,8 +234,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from agents.wncsca.analysis import analyze, parse_delays
     from agents.wncsca.timeline import format_timeline
+    from runtime.analysis import analyze, parse_delays
     from runtime.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -320,36 +284,7 @@ def _cmd_inject(args: argparse.Namespace) -> int:
 
 
 def _cmd_assess(args: argparse.Namespace) -> int:
-    from pydantic import ValidationError
-
-    from agents.monitor.command import run
-    from agents.monitor.config import MonitorConfig
-
-    try:
-        config = MonitorConfig(
-            max_order=args.max_order,
-            order=args.order,
-            criterion=args.criterion,
-            method=args.method,
-        )
-    except ValidationError as err:
-        e = err.errors()[0]
-        raise ConfigError(f"--{str(e['loc'][0]).replace('_', '-')}: {e['msg']}") from err
-    secondaries = [s.strip() for s in args.secondary.split(",") if s.strip()]
-    return run(
-        args.data,
-        primary=args.primary,
-        secondaries=secondaries,
-        delays=args.delays,
-        out=args.out,
-        setpoint=args.setpoint,
-        sep=args.sep,
-        decimal=args.decimal,
-        window=args.window,
-        start=args.start,
-        until=args.until,
-        config=config,
-    )
+    return run_from_args(args)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,14 +25,68 @@ the rest of the report is still written).
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from pydantic import ValidationError
+
 from agents.monitor.config import MonitorConfig, SecondarySpec
 
-__all__ = ["parse_delays", "assess_path", "default_out", "run"]
+__all__ = [
+    "add_assess_arguments",
+    "parse_delays",
+    "assess_path",
+    "default_out",
+    "run",
+    "run_from_args",
+]
+
+
+def add_assess_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of ``wncs assess`` (module docstring), added to its sub-parser."""
+    parser.add_argument("data", help="CSV file of routine data, or a run directory")
+    parser.add_argument("--primary", required=True, help="primary controlled variable (PV)")
+    parser.add_argument(
+        "--secondary",
+        default="",
+        help="candidate secondary measurements, COL[,COL...] (none: Harris index only)",
+    )
+    parser.add_argument(
+        "--delays",
+        required=True,
+        help="d1,d2 per secondary in order (samples: secondary -> primary, move -> secondary; "
+        "every pair adds up to the delay move -> primary), or d alone without a secondary",
+    )
+    parser.add_argument(
+        "--setpoint", default=None, help="set-point column: analyse the control error SP - PV"
+    )
+    parser.add_argument("--sep", default=";", help="CSV field separator (default ';')")
+    parser.add_argument("--decimal", default=".", help="CSV decimal mark, '.' or ','")
+    parser.add_argument(
+        "--window", type=int, default=None, help="run: the last N samples delivered (default all)"
+    )
+    parser.add_argument(
+        "--start", type=float, default=None, help="run: ignore samples taken before this time"
+    )
+    parser.add_argument(
+        "--until",
+        type=float,
+        default=None,
+        help="run: samples delivered before this time (default the run's end time)",
+    )
+    parser.add_argument("--max-order", type=int, default=30, help="largest AR/VAR order tried")
+    parser.add_argument("--order", type=int, default=None, help="fixed AR/VAR order")
+    parser.add_argument("--criterion", choices=("aic", "bic"), default="aic")
+    parser.add_argument("--method", choices=("ls", "yule_walker"), default="ls")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="JSON report (default next to the data: "
+        "NAME.assessment.json, or RUN_DIR/assessment_PRIMARY.json)",
+    )
 
 
 def parse_delays(text: str, secondaries: list[str]) -> tuple[int, list[SecondarySpec]]:
@@ -248,3 +302,35 @@ def run(
     for line in bad:
         print(f"wncs assess: unidentifiable: {line}", file=stderr)
     return 3 if bad else 0
+
+
+def run_from_args(args: argparse.Namespace, **streams: TextIO) -> int:
+    """``wncs assess`` from the parsed arguments of :func:`add_assess_arguments`."""
+    stderr = streams.get("stderr") or sys.stderr
+    try:
+        config = MonitorConfig(
+            max_order=args.max_order,
+            order=args.order,
+            criterion=args.criterion,
+            method=args.method,
+        )
+    except ValidationError as err:
+        e = err.errors()[0]
+        print(f"wncs assess: --{str(e['loc'][0]).replace('_', '-')}: {e['msg']}", file=stderr)
+        return 2
+    secondaries = [s.strip() for s in args.secondary.split(",") if s.strip()]
+    return run(
+        args.data,
+        primary=args.primary,
+        secondaries=secondaries,
+        delays=args.delays,
+        out=args.out,
+        setpoint=args.setpoint,
+        sep=args.sep,
+        decimal=args.decimal,
+        window=args.window,
+        start=args.start,
+        until=args.until,
+        config=config,
+        **streams,
+    )
