@@ -169,7 +169,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_node(args: argparse.Namespace) -> int:
-from agents.monitor.command import add_assess_arguments, run_from_args
     from runtime.bus import open_client
     from runtime.scenario import load_scenario
 
@@ -186,7 +185,6 @@ from agents.monitor.command import add_assess_arguments, run_from_args
     session = open_client(args.connect)
     try:
         if args.name == "clock":
-from agents.monitor.command import add_assess_arguments, run_from_args
             from runtime.clock import ClockRunner
 
             return ClockRunner(session, args.run_id, scenario, realtime=args.realtime).run()
@@ -234,8 +232,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
+    from agents.wncsca.analysis import analyze, parse_delays
     from agents.wncsca.timeline import format_timeline
-    from runtime.analysis import analyze, parse_delays
     from runtime.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
