@@ -26,7 +26,15 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-__all__ = ["SecondarySpec", "MonitorConfig", "rows_needed", "MonitorNodeConfig"]
+__all__ = [
+    "SecondarySpec",
+    "OscillationConfig",
+    "ScreeningAction",
+    "ScreeningConfig",
+    "MonitorConfig",
+    "rows_needed",
+    "MonitorNodeConfig",
+]
 
 
 class SecondarySpec(BaseModel):
@@ -37,6 +45,58 @@ class SecondarySpec(BaseModel):
     name: str = Field(min_length=1, description="column / series name")
     d1: int = Field(ge=0, description="dead time from this secondary to the primary")
     d2: int = Field(ge=1, description="dead time from the manipulated variable to this secondary")
+
+
+class OscillationConfig(BaseModel):
+    """Thresholds of the oscillation test (:mod:`agents.monitor.oscillation`, Thornhill et al.
+    2003)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    min_regularity: float = Field(default=1.0, gt=0, description="r above which it is regular")
+    min_decay: float = Field(
+        default=0.8, gt=0, le=1, description="ACF lobe ratio per period from which it is sustained"
+    )
+    significance: float = Field(
+        default=3.0, gt=0, description="ACF lobes count above significance/sqrt(N)"
+    )
+    max_crossings: int = Field(default=11, ge=4, description="ACF zero crossings used at most")
+    min_periods: int = Field(default=3, ge=2, description="period estimates needed")
+
+
+ScreeningAction = Literal["warn", "exclude", "refuse"]
+"""What a data-quality finding does: report it; analyse without the rows concerned (spikes:
+replaced by interpolation; other rows: the longest stretch without them); refuse the data."""
+
+
+class ScreeningConfig(BaseModel):
+    """Data-quality screening before the analysis (:mod:`agents.monitor.screening`): per check
+    its threshold and its action."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    frozen: ScreeningAction = "exclude"
+    frozen_run: int = Field(
+        default=20, ge=3, description="equal values in a row that make a frozen segment"
+    )
+    compressed: ScreeningAction = "warn"
+    compressed_run: int = Field(
+        default=20, ge=3, description="samples on one straight line (historian interpolation)"
+    )
+    spike: ScreeningAction = "exclude"
+    spike_threshold: float = Field(
+        default=8.0, gt=0, description="robust z (MAD of the increments) of a spike"
+    )
+    quality: ScreeningAction = "exclude"
+    mode: ScreeningAction = "exclude"
+    offset: Literal["warn", "refuse"] = "warn"
+    offset_ratio: float = Field(
+        default=3.0, gt=0, description="|mean(SP - PV)| above this many std(PV): not tracking"
+    )
+    saturation: ScreeningAction = "warn"
+    saturation_fraction: float = Field(
+        default=0.05, gt=0, lt=1, description="share of samples at an OP limit that is flagged"
+    )
 
 
 class MonitorConfig(BaseModel):
@@ -69,6 +129,8 @@ class MonitorConfig(BaseModel):
         lt=1,
         description="predicted relative variance reduction from which cascade is recommended",
     )
+    oscillation: OscillationConfig = Field(default_factory=OscillationConfig)
+    screening: ScreeningConfig = Field(default_factory=ScreeningConfig)
 
     @model_validator(mode="after")
     def _band(self) -> MonitorConfig:

@@ -11,7 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MonitorError", "DataError", "IdentificationError", "REASONS", "check_not_diverging"]
+__all__ = [
+    "MonitorError",
+    "DataError",
+    "IdentificationError",
+    "REASONS",
+    "NONSTATIONARY",
+    "check_not_diverging",
+]
 
 REASONS: dict[str, str] = {
     "too_short": "fewer samples than the model needs",
@@ -24,6 +31,15 @@ REASONS: dict[str, str] = {
     "unstable_model": "the fitted autoregressive model is not stationary",
 }
 """Reason codes of :class:`IdentificationError` and what they mean."""
+
+NONSTATIONARY: dict[str, str] = {
+    "drift": "a trend: the detrended data are stationary",
+    "integrating": "a unit root near z = 1 that detrending does not remove (integrating "
+    "process, random-walk disturbance, set-point moves)",
+    "manual": "integrating while the controller output does not move: the loop is in manual",
+    "diverging": "the spread grows over the record: an unstable loop",
+}
+"""Kinds of non-stationary records the Harris index refuses (``unstable_model``)."""
 
 
 class MonitorError(ValueError):
@@ -56,14 +72,18 @@ class IdentificationError(MonitorError):
         One of :data:`REASONS`.
     detail : str
         Human-readable explanation naming the series concerned.
+    kind : str or None
+        A finer class where there is one: for ``unstable_model`` one of :data:`NONSTATIONARY`
+        (or ``"slow"`` / ``"oscillating"`` from the model fit before classification).
     """
 
-    def __init__(self, reason: str, detail: str) -> None:
+    def __init__(self, reason: str, detail: str, *, kind: str | None = None) -> None:
         if reason not in REASONS:
             raise ValueError(f"unknown reason {reason!r}")
         super().__init__(f"{reason}: {detail}")
         self.reason = reason
         self.detail = detail
+        self.kind = kind
 
 
 def check_not_diverging(y: np.ndarray, name: str, *, ratio: float = 100.0) -> None:
@@ -82,4 +102,5 @@ def check_not_diverging(y: np.ndarray, name: str, *, ratio: float = 100.0) -> No
             "unstable_model",
             f"{name!r} spreads {last / max(first, 1e-300):.3g} times more in the last fifth of the "
             "record than in the first: the loop is unstable or the data are not stationary",
+            kind="diverging",
         )

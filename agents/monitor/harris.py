@@ -20,6 +20,26 @@ Uncertainty (the index is fragile: it depends on the tail of a fitted model and 
   residuals resampled with a seeded ``np.random.Generator``, each refitted at the same order; the
   standard deviation and percentile interval of the re-estimated index.
 
+The interval is that of the estimator: its lower end clipped at 0, its upper end never clipped,
+so it is never inverted and always holds the index (delta method). The index itself may exceed
+1 -- estimation noise around a loop at minimum variance (``above_one``), or, when the whole
+interval lies above 1, a delay ``d`` larger than the loop's.
+
+Sustained oscillations (limit cycles). The AR model is fitted with ``oscillation_ok``
+(:mod:`agents.monitor.timeseries`): a record whose model has roots on the unit circle at a period
+shorter than N/10 samples is assessed, not refused; only slow roots (drift, integrating, manual,
+named by :func:`agents.monitor.stationarity.classify`) are refused. For such a model
+(``oscillating_model``) ``psi_0 ... psi_(d-1)`` and ``sigma2_e`` are still well defined and the
+index is that of the data, ``sigma2_mv / var(y)`` with the sample variance, which ten or more
+cycles estimate well. Caveat: the limit cycle counts entirely as variance a minimum-variance
+controller would remove (it is predictable d samples ahead), so the index measures how far the
+oscillating loop is from minimum variance, not what retuning alone can gain if the cycle comes
+from the valve (stiction). The model's own ratio and the delta method on it are undefined for a
+root on the circle; the standard error is then the delta method on the numerator
+``sigma2_e sum_(i<d) psi_i^2`` alone (coefficients and ``sigma2_e``, whose variance is
+``2 sigma2_e^2 / (N - p)``), the sample variance held fixed (``uncertainty =
+"delta_numerator"``, also when a bootstrap was asked for: an explosive model cannot be resampled).
+
 :func:`harris_index` reports the index, its standard error, an interval, the AR order and the
 minimum variance.
 """
@@ -36,7 +56,8 @@ from scipy.signal import lfilter
 from scipy.stats import norm
 
 from agents.monitor.errors import IdentificationError, check_not_diverging
-from agents.monitor.timeseries import Criterion, VARModel, fit_var, lagged
+from agents.monitor.stationarity import classify
+from agents.monitor.timeseries import Criterion, VARModel, fit_var, lagged, near_unit_roots
 
 __all__ = ["HarrisResult", "harris_index", "model_index"]
 
@@ -52,7 +73,7 @@ class HarrisResult:
     std : float
         Standard error of the index (delta method or bootstrap).
     ci : tuple of float
-        Interval at ``confidence`` (clipped to [0, 1]).
+        Interval at ``confidence`` (lower end clipped at 0; never inverted).
     confidence : float
         Confidence level of ``ci``.
     sigma2_mv : float
@@ -68,9 +89,16 @@ class HarrisResult:
     n : int
         Samples.
     uncertainty : str
-        ``"delta"`` or ``"bootstrap"``.
+        ``"delta"``, ``"bootstrap"`` or ``"delta_numerator"`` (oscillating model).
     psi : tuple of float
         ``psi_0 ... psi_(d-1)``.
+    oscillating_model : bool
+        The AR model has roots near the unit circle at ``model_period`` (a sustained
+        oscillation); the index is that of the data (module docstring).
+    model_period : float or None
+        Period of the model's dominant near-unit root, samples.
+    above_one : bool
+        The index exceeds 1 (estimation noise, or a delay larger than the loop's).
     """
 
     index: float
@@ -85,6 +113,9 @@ class HarrisResult:
     n: int
     uncertainty: str
     psi: tuple[float, ...]
+    oscillating_model: bool = False
+    model_period: float | None = None
+    above_one: bool = False
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary."""
@@ -122,6 +153,7 @@ def harris_index(
     rng: np.random.Generator | None = None,
     confidence: float = 0.95,
     name: str = "y",
+    op: NDArray[np.float64] | None = None,
 ) -> HarrisResult:
     """Harris index of a routine output (or control error) and its uncertainty.
 
@@ -144,11 +176,16 @@ def harris_index(
         Level of the reported interval.
     name : str
         Series name for error messages.
+    op : ndarray, optional
+        The controller output over the same samples: names a non-stationary record ``manual``
+        when it does not move.
 
     Raises
     ------
     IdentificationError
-        ``constant``, ``not_finite``, ``too_short``, ``bad_delay``, ``unstable_model``.
+        ``constant``, ``not_finite``, ``too_short``, ``bad_delay``, ``unstable_model`` (with
+        its :attr:`~agents.monitor.errors.IdentificationError.kind`: ``drift``,
+        ``integrating``, ``manual`` or ``diverging``).
     """
     y = np.asarray(y, dtype=float).ravel()
     if not np.all(np.isfinite(y)):
@@ -164,7 +201,20 @@ def harris_index(
         raise IdentificationError(
             "bad_delay", f"delay {delay} is not small compared with the {y.size} samples"
         )
-    model = fit_var(y, order=order, max_order=max_order, criterion=criterion, names=(name,))
+    settings = {"order": order, "max_order": max_order, "criterion": criterion}
+    try:
+        model = fit_var(y, **settings, names=(name,), oscillation_ok=True)
+    except IdentificationError as exc:
+        if exc.kind != "slow":
+            raise
+        kind, why = classify(y, op=op, **settings, name=name)
+        raise IdentificationError(
+            "unstable_model",
+            f"not stationary over the record ({kind}): {why}; {exc.detail}",
+            kind=kind,
+        ) from None
+    _, near = near_unit_roots(model, y.size)
+    oscillating = bool(near)
     a = model.coefs[:, 0, 0].copy()
     psi = model.impulse(delay)[:, 0, 0]
     s2e = float(model.sigma[0, 0])
@@ -172,7 +222,12 @@ def harris_index(
     index = sigma2_mv / var
     eta_model = model_index(a, delay)
     z = float(norm.ppf(0.5 + confidence / 2.0))
-    if uncertainty == "delta":
+    method = uncertainty
+    if oscillating:
+        method = "delta_numerator"
+        std = _numerator_std(a, delay, s2e, model.cov_params, y.size - model.order) / var
+        lo, hi = index - z * std, index + z * std
+    elif uncertainty == "delta":
         std = _delta_std(a, delay, model.cov_params)
         lo, hi = index - z * std, index + z * std
     elif uncertainty == "bootstrap":
@@ -186,7 +241,7 @@ def harris_index(
     return HarrisResult(
         index=index,
         std=std,
-        ci=(max(0.0, lo), min(1.0, hi)),
+        ci=_interval(lo, hi),
         confidence=confidence,
         sigma2_mv=sigma2_mv,
         variance=var,
@@ -194,9 +249,48 @@ def harris_index(
         delay=delay,
         order=model.order,
         n=int(y.size),
-        uncertainty=uncertainty,
+        uncertainty=method,
         psi=tuple(float(v) for v in psi),
+        oscillating_model=oscillating,
+        model_period=2 * math.pi / abs(math.atan2(near[0].imag, near[0].real)) if near else None,
+        above_one=index > 1.0,
     )
+
+
+def _interval(lo: float, hi: float) -> tuple[float, float]:
+    """The estimator's interval, lower end clipped at 0, never inverted (nan stays nan)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return (lo, hi)
+    lo_c = max(0.0, lo)
+    return (lo_c, max(hi, lo_c))
+
+
+def _numerator_std(
+    a: NDArray[np.float64],
+    delay: int,
+    s2e: float,
+    cov: NDArray[np.float64] | None,
+    dof: int,
+) -> float:
+    """Delta-method standard error of ``sigma2_e sum_(i<d) psi_i^2`` (module docstring)."""
+    p = a.size
+
+    def head(coefs: NDArray[np.float64]) -> float:
+        m = VARModel(coefs=coefs.reshape(p, 1, 1), sigma=np.eye(1), order=p, n_obs=0, method="ls")
+        return float(np.sum(m.impulse(delay)[:, 0, 0] ** 2))
+
+    h0 = head(a)
+    var_s2e = 2.0 * s2e**2 / max(dof, 1)
+    if cov is None:
+        return float(math.sqrt(var_s2e) * h0)
+    grad = np.zeros(p)
+    for i in range(p):
+        step = 1e-6 * max(1.0, abs(a[i]))
+        up, dn = a.copy(), a.copy()
+        up[i] += step
+        dn[i] -= step
+        grad[i] = (head(up) - head(dn)) / (2 * step)
+    return float(math.sqrt(s2e**2 * max(grad @ cov @ grad, 0.0) + var_s2e * h0**2))
 
 
 def _delta_std(a: NDArray[np.float64], delay: int, cov: NDArray[np.float64] | None) -> float:

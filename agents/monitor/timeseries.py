@@ -25,6 +25,11 @@ Stationarity: a fitted root of modulus ``>= 1 - 10/N`` is refused (``unstable_mo
 walk's least-squares root is ``1 - O(1/N)`` (Dickey-Fuller); this limit catches about 90 % of
 them (measured over 40 seeds at N = 1000, 5000, 20000) and refuses stationary data whose slowest
 mode lasts more than N/10 samples, whose variance a record of N samples cannot estimate anyway.
+With ``oscillation_ok`` (the Harris index) such a root is refused only when it is *slow*: its
+angle ``|arg z| < 2 pi 10 / N``, a period longer than N/10 samples (fewer than ten cycles in the
+record: a drift, an integrating process, a loop in manual). A root near the unit circle at a
+shorter period is a sustained oscillation (a limit cycle, e.g. valve stiction) whose variance
+the record's ten or more cycles estimate; the model is kept (:func:`near_unit_roots`).
 
 Sums of squared impulse responses are exact: finite heads by the recursion, infinite totals by
 the discrete Lyapunov equation of the companion form (``X = F X F' + G b b' G'``), so no
@@ -43,7 +48,15 @@ from scipy.linalg import solve_discrete_lyapunov
 
 from agents.monitor.errors import IdentificationError
 
-__all__ = ["VARModel", "fit_var", "var_from_autocovariance", "lagged", "Criterion", "Method"]
+__all__ = [
+    "VARModel",
+    "fit_var",
+    "near_unit_roots",
+    "var_from_autocovariance",
+    "lagged",
+    "Criterion",
+    "Method",
+]
 
 Criterion = Literal["aic", "bic"]
 Method = Literal["ls", "yule_walker"]
@@ -95,6 +108,12 @@ class VARModel:
             f[:k, :] = np.hstack(list(self.coefs))
             f[k:, :-k] = np.eye(k * (p - 1))
         return f
+
+    def roots(self) -> NDArray[np.complex128]:
+        """Eigenvalues of the companion matrix (the model's poles)."""
+        if self.order == 0:
+            return np.zeros(0, dtype=complex)
+        return np.linalg.eigvals(self.companion())
 
     def spectral_radius(self) -> float:
         """Largest modulus of the companion matrix's eigenvalues (``< 1``: stationary)."""
@@ -191,6 +210,7 @@ def fit_var(
     criterion: Criterion = "aic",
     method: Method = "ls",
     names: tuple[str, ...] | None = None,
+    oscillation_ok: bool = False,
 ) -> VARModel:
     """Fit a VAR(p) to the columns of ``y`` (their means are removed here).
 
@@ -208,11 +228,15 @@ def fit_var(
         Estimator (see the module docstring).
     names : tuple of str, optional
         Series names for error messages.
+    oscillation_ok : bool
+        Keep a model whose roots near the unit circle are all oscillatory (module docstring).
 
     Raises
     ------
     IdentificationError
-        ``too_short``, ``collinear`` (rank-deficient regressors), ``unstable_model``.
+        ``too_short``, ``collinear`` (rank-deficient regressors), ``unstable_model`` (its
+        ``kind``: ``"slow"``, a root near 1; ``"oscillating"``, only oscillatory ones, refused
+        without ``oscillation_ok``).
     """
     y = np.asarray(y, dtype=float)
     if y.ndim == 1:
@@ -265,16 +289,45 @@ def fit_var(
         cov_params=cov0,
     )
     rho = model.spectral_radius()
-    limit = min(1.0 - 1e-6, 1.0 - _UNIT_ROOT_SAMPLES / n)
-    if not rho < limit:
+    limit = _limit(n)
+    if rho < limit:
+        return model
+    slow, osc = near_unit_roots(model, n)
+    if not slow:
+        if oscillation_ok:
+            return model
+        period = 2 * math.pi / abs(float(np.angle(osc[0])))
         raise IdentificationError(
             "unstable_model",
             f"the fitted VAR({p}) of {', '.join(repr(s) for s in names)} has a root of modulus "
-            f"{rho:.6f} (limit 1 - {_UNIT_ROOT_SAMPLES:g}/N = {limit:.6f}): the data are not "
-            "stationary over the record (drifting, integrating or in manual), or too short for "
-            "their slowest mode",
+            f"{abs(osc[0]):.6f} at a period of {period:.3g} samples: a sustained oscillation "
+            "(limit cycle), whose impulse responses do not die out, so their sums of squares "
+            "are unbounded; see the oscillation diagnosis and the Harris index",
+            kind="oscillating",
         )
-    return model
+    raise IdentificationError(
+        "unstable_model",
+        f"the fitted VAR({p}) of {', '.join(repr(s) for s in names)} has a root of modulus "
+        f"{abs(slow[0]):.6f} (limit 1 - {_UNIT_ROOT_SAMPLES:g}/N = {limit:.6f}) with a period "
+        f"longer than N/{_UNIT_ROOT_SAMPLES:g}: the data are not stationary over the record "
+        "(drifting, integrating or in manual), or too short for their slowest mode",
+        kind="slow",
+    )
+
+
+def _limit(n: int) -> float:
+    return min(1.0 - 1e-6, 1.0 - _UNIT_ROOT_SAMPLES / n)
+
+
+def near_unit_roots(model: VARModel, n: int) -> tuple[list[complex], list[complex]]:
+    """The model's roots of modulus ``>= 1 - 10/n``, split into slow ones (period longer than
+    ``n/10`` samples, ``|arg z| < 2 pi 10 / n``) and oscillatory ones, each by decreasing
+    modulus."""
+    limit = _limit(n)
+    near = sorted((complex(z) for z in model.roots() if abs(z) >= limit), key=abs, reverse=True)
+    cut = 2 * math.pi * _UNIT_ROOT_SAMPLES / n
+    slow = [z for z in near if abs(math.atan2(z.imag, z.real)) < cut]
+    return slow, [z for z in near if z not in slow]
 
 
 def var_from_autocovariance(gamma: NDArray[np.float64], order: int) -> VARModel:
