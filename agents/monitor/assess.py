@@ -9,7 +9,11 @@ question "would cascade control pay off, and with which secondary measurement?":
    ``u`` -> secondary, ``d1 + d2 = d``), the variance decomposition 1a/1b/2a/2b of eq. (11)-(15)
    and the predicted variance under cascade control (band ``[1a + 2a/2, 1a + 2a]`` by default,
    minimum 1a; :mod:`agents.monitor.decomposition`), or the reason it cannot be identified;
-3. the ranking of the identified candidates by predicted cascade variance.
+3. the ranking of the identified candidates by predicted cascade variance;
+4. before all this, the data-quality screening (:mod:`agents.monitor.screening`: frozen,
+   compressed, spikes, quality and mode columns, PV not tracking SP, saturated OP), and with the
+   index the oscillation diagnosis (:mod:`agents.monitor.oscillation`, Thornhill et al. 2003) of
+   the analysed series.
 
 :func:`assess` works on arrays (a node would call it on a window of samples); :func:`assess_csv`
 reads a historian export first (:func:`agents.monitor.routine_data.load_routine_csv`), for the
@@ -20,19 +24,23 @@ infinities become ``null``).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from agents.monitor.config import MonitorConfig, SecondarySpec, rows_needed
 from agents.monitor.decomposition import Decomposition, decompose, rank_secondaries
 from agents.monitor.errors import DataError, IdentificationError
 from agents.monitor.harris import HarrisResult, harris_index
+from agents.monitor.oscillation import OscillationResult, detect_oscillation
 from agents.monitor.routine_data import RoutineData, load_routine_csv
+from agents.monitor.screening import Screening, label_mask, screen
 
 __all__ = [
     "SecondarySpec",
@@ -42,6 +50,9 @@ __all__ = [
     "rows_needed",
     "assess",
     "assess_csv",
+    "parse_time",
+    "DEFAULT_GOOD",
+    "DEFAULT_AUTO",
 ]
 
 
@@ -104,6 +115,10 @@ class AssessmentResult:
     config: MonitorConfig
     source: str | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    oscillation: OscillationResult | None = None
+    screening: Screening | None = None
+    hints: tuple[str, ...] = field(default_factory=tuple)
+    analysed: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
 
     @property
     def best(self) -> CandidateResult | None:
@@ -149,6 +164,7 @@ class AssessmentResult:
                 "status": "unidentifiable",
                 "reason": err.reason if err else None,
                 "detail": err.detail if err else None,
+                "kind": err.kind if err else None,
             }
         return _clean(
             {
@@ -164,6 +180,9 @@ class AssessmentResult:
                 "band_rule": f"[1a + {1 - ra[1]:g}*2a, 1a + {1 - ra[0]:g}*2a]",
                 "config": self.config.model_dump(),
                 "notes": list(self.notes),
+                "oscillation": self.oscillation.to_dict() if self.oscillation else None,
+                "screening": self.screening.to_dict() if self.screening else None,
+                "hints": list(self.hints),
             }
         )
 
@@ -198,6 +217,11 @@ def assess(
     setpoint: str | None = None,
     config: MonitorConfig | None = None,
     source: str | None = None,
+    op: str | None = None,
+    op_limits: tuple[float, float] | None = None,
+    quality: ArrayLike | None = None,
+    mode: ArrayLike | None = None,
+    row_offset: int = 0,
 ) -> AssessmentResult:
     """Harris index and seed 004 cascade assessment of one simple-feedback loop.
 
@@ -218,6 +242,14 @@ def assess(
         Analysis settings.
     source : str, optional
         Where the data came from (recorded in the result).
+    op : str, optional
+        Controller-output series: screened for saturation; tells a loop in manual.
+    op_limits : (float, float), optional
+        The output's limits (default: the record's extremes).
+    quality, mode : array of bool, optional
+        Rows of good quality / in auto (:func:`agents.monitor.screening.label_mask`).
+    row_offset : int
+        Data rows of the source before the first sample (row numbers in the findings).
 
     Returns
     -------
@@ -227,7 +259,8 @@ def assess(
     Raises
     ------
     DataError
-        A named series is missing, of another length, or the data are too short.
+        A named series is missing, of another length, or the data are too short; a screening
+        check set to ``refuse`` found something, or exclusions leave too few rows.
     ValueError
         Inconsistent delays (naming the candidate and field).
     """
@@ -242,7 +275,12 @@ def assess(
                 f"secondaries[{i}] ({s.name!r}): d1 + d2 = {s.d1} + {s.d2} = {s.d1 + s.d2} must "
                 f"equal delay = {delay} (dead time from u to {primary!r})"
             )
-    names = [primary] + ([setpoint] if setpoint else []) + [s.name for s in specs]
+    names = (
+        [primary]
+        + ([setpoint] if setpoint else [])
+        + [s.name for s in specs]
+        + ([op] if op and op not in (primary, setpoint) else [])
+    )
     arrays: dict[str, np.ndarray] = {}
     for nm in names:
         if nm not in data:
@@ -255,9 +293,30 @@ def assess(
     need = rows_needed(cfg, 2 if specs else 1)
     if n < need:
         raise DataError(f"{n} samples; the model needs at least {need}", row=n)
+    scr = screen(
+        arrays,
+        pv=primary,
+        sp=setpoint,
+        op=op,
+        secondaries=[s.name for s in specs],
+        quality=quality,
+        mode=mode,
+        op_limits=op_limits,
+        config=cfg.screening,
+        min_rows=need,
+        row_offset=row_offset,
+    )
+    n_screened, arrays = n, scr.series
+    n = arrays[primary].size
     y1 = arrays[primary] if setpoint is None else arrays[setpoint] - arrays[primary]
     rng = np.random.default_rng(cfg.seed)
-    notes: list[str] = []
+    notes: list[str] = [f.text for f in scr.findings]
+    if n < n_screened:
+        notes.append(
+            f"analysed rows {scr.first_row}-{scr.last_row} ({n} of {n_screened}: the longest "
+            "stretch without excluded rows)"
+        )
+    osc = detect_oscillation(y1, cfg.oscillation)
     harris: HarrisResult | None = None
     herr: IdentificationError | None = None
     try:
@@ -272,9 +331,11 @@ def assess(
             rng=rng,
             confidence=cfg.confidence,
             name=primary,
+            op=arrays[op] if op else None,
         )
     except IdentificationError as exc:
         herr = exc
+    notes.extend(_harris_notes(harris, osc))
     cands: list[CandidateResult] = []
     decs: dict[str, Decomposition | IdentificationError] = {}
     for s in specs:
@@ -309,6 +370,14 @@ def assess(
             )
         cands.append(CandidateResult(s.name, s.d1, s.d2, "ok", decomposition=dec))
     ranking = tuple(rank_secondaries(decs, cfg.removed_2a))
+    hints: list[str] = []
+    if herr is not None and herr.kind in ("drift", "integrating") and setpoint is None:
+        hints.append(
+            f"{primary!r} is refused on the PV alone: if the set point moved over the record, "
+            "analyse the control error SP - PV (pass --setpoint COL)"
+        )
+    if herr is not None and herr.kind == "integrating" and op is None:
+        hints.append("pass the controller output (--op COL) to tell a loop in manual")
     return AssessmentResult(
         primary=primary,
         delay=delay,
@@ -321,7 +390,46 @@ def assess(
         config=cfg,
         source=source,
         notes=tuple(notes),
+        oscillation=osc,
+        screening=scr,
+        hints=tuple(hints),
+        analysed=y1,
     )
+
+
+def _harris_notes(h: HarrisResult | None, osc: OscillationResult) -> list[str]:
+    """Caveats of the index: oscillating data, an index above 1."""
+    out = []
+    if h is not None and (h.oscillating_model or osc.oscillating):
+        out.append(
+            "oscillating loop: the Harris index is that of the data (the cycle counts as "
+            "variance a minimum-variance controller would remove); if the cycle comes from the "
+            "valve (stiction), retuning alone will not remove it"
+        )
+    if h is not None and h.above_one:
+        if h.ci[0] > 1.0:
+            out.append(
+                f"Harris index {h.index:.3f} with its whole interval above 1: the delay d = "
+                f"{h.delay} is probably larger than the loop's"
+            )
+        else:
+            out.append(
+                f"Harris index {h.index:.3f} above 1: estimation noise; the loop is at minimum "
+                "variance within its uncertainty"
+            )
+    return out
+
+
+_SP_NAME = re.compile(
+    r"(^|[^a-z0-9])(sp|sv|setpoint|set_point|set-point|set point)([^a-z0-9]|$)", re.I
+)
+
+DEFAULT_GOOD = ("good", "ok", "192")
+"""Quality-column values read as good by default (text compared case-insensitively; 192 is the
+OPC DA "good" quality)."""
+
+DEFAULT_AUTO = ("auto", "aut", "cas", "cascade")
+"""Mode-column values read as "in automatic" by default."""
 
 
 def assess_csv(
@@ -334,17 +442,155 @@ def assess_csv(
     sep: str = ";",
     decimal: str = ".",
     config: MonitorConfig | None = None,
+    op: str | None = None,
+    op_limits: tuple[float, float] | None = None,
+    quality: str | None = None,
+    good: Sequence[str] = DEFAULT_GOOD,
+    mode: str | None = None,
+    auto: Sequence[str] = DEFAULT_AUTO,
+    time: str | None = None,
+    start: str | float | None = None,
+    until: str | float | None = None,
+    window: int | None = None,
+    skip_rows: int | None = None,
 ) -> AssessmentResult:
-    """:func:`assess` on the columns of a routine-data CSV file (refusals as :class:`DataError`)."""
+    """:func:`assess` on the columns of a routine-data CSV file (refusals as :class:`DataError`).
+
+    Parameters
+    ----------
+    op, op_limits, setpoint, config
+        As :func:`assess` (columns by name).
+    quality, mode : str, optional
+        Quality / mode columns (text); rows whose value is not in ``good`` / ``auto`` are
+        screened (:func:`agents.monitor.screening.label_mask`).
+    time : str, optional
+        Time column (numbers, or ISO 8601 date-times such as ``2024-03-01 00:10:00``): then
+        ``start`` and ``until`` are times; without it they are 1-based data rows.
+    start, until, window
+        Rows at or after ``start`` and before ``until``; of them the last ``window``.
+    skip_rows : int, optional
+        Lines before the header (default: found, :func:`load_routine_csv`).
+    """
     cfg = config or MonitorConfig()
     specs = _as_specs(secondaries)
     cols = [primary] + ([setpoint] if setpoint else []) + [s.name for s in specs]
+    if op and op not in cols:
+        cols.append(op)
+    labels = [c for c in (quality, mode, time) if c]
     data = load_routine_csv(
         path,
         cols,
         sep,
         decimal=decimal,
         min_rows=rows_needed(cfg, 2 if specs else 1),
-        constant_ok=[setpoint] if setpoint else [],
+        constant_ok=[c for c in (setpoint, op) if c],
+        labels=labels,
+        skip_rows=skip_rows,
     )
-    return assess(data, primary, delay, specs, setpoint=setpoint, config=cfg, source=str(path))
+    a, b = _rows(data, time, start, until, window)
+    arrays = {k: v[a:b] for k, v in data.columns.items()}
+    result = assess(
+        arrays,
+        primary,
+        delay,
+        specs,
+        setpoint=setpoint,
+        config=cfg,
+        source=str(path),
+        op=op,
+        op_limits=op_limits,
+        quality=label_mask(data.labels[quality][a:b], good) if quality else None,
+        mode=label_mask(data.labels[mode][a:b], auto) if mode else None,
+        row_offset=a,
+    )
+    sp_like = [c for c in data.header if _SP_NAME.search(c) and c not in (primary, setpoint)]
+    if setpoint is None and sp_like and result.hints:
+        hint = (
+            f"the file has a set-point column {sp_like[0]!r}: pass --setpoint {sp_like[0]} to "
+            "analyse the control error"
+        )
+        return replace(result, hints=(hint, *result.hints[1:]))
+    return result
+
+
+def parse_time(text: str) -> float:
+    """A time cell as a number: itself if numeric, else an ISO 8601 date-time in seconds
+    (naive times counted from 1970-01-01 as written, no time zone applied).
+
+    Raises
+    ------
+    ValueError
+        Neither a number nor an ISO date-time.
+    """
+    t = text.strip().strip('"').strip()
+    try:
+        return float(t)
+    except ValueError:
+        pass
+    try:
+        dt = datetime.fromisoformat(t)
+    except ValueError:
+        raise ValueError(f"{text!r} is neither a number nor an ISO 8601 date-time") from None
+    if dt.tzinfo is not None:
+        return dt.timestamp()
+    return (dt - datetime(1970, 1, 1)).total_seconds()
+
+
+def _rows(
+    data: RoutineData,
+    time: str | None,
+    start: str | float | None,
+    until: str | float | None,
+    window: int | None,
+) -> tuple[int, int]:
+    """0-based ``[a, b)`` of the rows selected by ``start``, ``until`` and ``window``."""
+    n = data.n_rows
+    if window is not None and window < 1:
+        raise DataError(f"--window: must be >= 1 rows, got {window}")
+    if time is None:
+        a, b = 0, n
+        for flag, value in (("--start", start), ("--until", until)):
+            if value is None:
+                continue
+            try:
+                row = int(str(value))
+            except ValueError:
+                raise DataError(
+                    f"{flag}: {value!r} is not a data row number (pass --time COL to cut by time)"
+                ) from None
+            if row < 1:
+                raise DataError(f"{flag}: data rows count from 1, got {row}")
+            if flag == "--start":
+                a = min(row - 1, n)
+            else:
+                b = min(row - 1, n)
+    else:
+        times = np.empty(n)
+        for k, cell in enumerate(data.labels[time]):
+            try:
+                times[k] = parse_time(cell)
+            except ValueError as err:
+                raise DataError(
+                    f"column {time!r}, row {k + 1}: {err}", column=time, row=k + 1
+                ) from None
+        back = np.flatnonzero(np.diff(times) <= 0)
+        if back.size:
+            k = int(back[0]) + 2
+            raise DataError(
+                f"column {time!r}, row {k}: time {data.labels[time][k - 1]!r} does not increase",
+                column=time,
+                row=k,
+            )
+        a, b = 0, n
+        try:
+            if start is not None:
+                a = int(np.searchsorted(times, parse_time(str(start)), side="left"))
+            if until is not None:
+                b = int(np.searchsorted(times, parse_time(str(until)), side="left"))
+        except ValueError as err:
+            raise DataError(f"--start/--until: {err}") from None
+    if b <= a:
+        raise DataError(f"--start/--until select no rows (rows {a + 1} to {b} of {n})")
+    if window is not None:
+        a = max(a, b - window)
+    return a, b

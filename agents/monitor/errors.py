@@ -14,6 +14,7 @@ import numpy as np
 __all__ = [
     "MonitorError",
     "DataError",
+    "QualityError",
     "IdentificationError",
     "REASONS",
     "NONSTATIONARY",
@@ -61,6 +62,24 @@ class DataError(MonitorError):
         super().__init__(message)
         self.column = column
         self.row = row
+
+
+class QualityError(DataError):
+    """Data refused by a data-quality check set to ``refuse`` (or whose exclusions leave too
+    few rows): the file was read, its content is not fit for the analysis.
+
+    Attributes
+    ----------
+    check : str
+        The screening check (``frozen``, ``spike``, ...), as in
+        :mod:`agents.monitor.screening`.
+    """
+
+    def __init__(
+        self, message: str, *, check: str, column: str | None = None, row: int | None = None
+    ):
+        super().__init__(message, column=column, row=row)
+        self.check = check
 
 
 class IdentificationError(MonitorError):

@@ -53,9 +53,18 @@ def format_report(report: dict[str, Any]) -> str:
             f"({100 * h['confidence']:g} % interval {_g(lo, '.3f')}-{_g(hi, '.3f')}; "
             f"AR({h['order']}), minimum variance {_g(h['sigma2_mv'])}, {h['uncertainty']} "
             "method)"
+            + (" -- above 1: estimation noise" if h.get("above_one") else "")
         )
     else:
-        lines.append(f"Harris index: unidentifiable ({h['reason']}): {h['detail']}")
+        kind = f", {h['kind']}" if h.get("kind") else ""
+        lines.append(f"Harris index: unidentifiable ({h['reason']}{kind}): {h['detail']}")
+    osc = report.get("oscillation")
+    if osc:
+        lines.append(f"Oscillation (ACF test, Thornhill et al. 2003): {osc['text']}")
+    scr = report.get("screening")
+    if scr:
+        flags = ", ".join(scr["flags"]) or "none"
+        lines.append(f"Data quality: {flags}; rows {scr['rows'][0]}-{scr['rows'][1]} analysed")
     cands = report["candidates"]
     if cands:
         lines.append(
@@ -94,4 +103,6 @@ def format_report(report: dict[str, Any]) -> str:
         lines.append(f"Recommendation: {report['recommendation']['text']}")
     for note in report.get("notes", []):
         lines.append(f"Note: {note}")
+    for hint in report.get("hints", []):
+        lines.append(f"Hint: {hint}")
     return "\n".join(lines)

@@ -14,6 +14,13 @@ use: a missing column, a missing value (empty cell, ``NA``, ``NaN``, ``#N/A``, `
 row), a non-numeric or infinite cell, a constant column (unless listed in ``constant_ok``, e.g. a
 set point that never moved), and fewer rows than the model needs. Columns not requested (e.g. a
 text time stamp) are not parsed. Blank lines are skipped.
+
+Multi-line headers (a title, tag descriptions, engineering units): without ``skip_rows`` the
+header is the first line holding every requested column (the first line if none does, so that
+the refusal lists its columns); lines right after it whose requested numeric cells are all text
+(a units line such as ``s;degC;%``) are skipped, and counted in :attr:`RoutineData.skipped`.
+With ``skip_rows`` the header is the first non-blank line after that many lines. ``labels`` are
+columns read as text (a time stamp, a quality or mode column), never refused for their content.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +43,8 @@ MISSING_TOKENS = frozenset(
 )
 """Cell contents (case-insensitive, stripped) read as a missing value."""
 
+_MAX_UNITS_LINES = 5
+
 
 @dataclass(frozen=True)
 class RoutineData:
@@ -44,6 +53,9 @@ class RoutineData:
     columns: dict[str, NDArray[np.float64]]
     path: str
     header: tuple[str, ...]
+    labels: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    header_line: int = 1
+    skipped: int = 0
 
     @property
     def n_rows(self) -> int:
@@ -68,6 +80,8 @@ def load_routine_csv(
     min_rows: int = 0,
     constant_ok: Iterable[str] = (),
     encoding: str = "utf-8-sig",
+    labels: Sequence[str] = (),
+    skip_rows: int | None = None,
 ) -> RoutineData:
     """Read the ``columns`` of a routine-data CSV file.
 
@@ -87,6 +101,10 @@ def load_routine_csv(
         Requested columns allowed to be constant (typically the set point).
     encoding : str
         File encoding (the default also strips a UTF-8 byte-order mark).
+    labels : sequence of str
+        Columns read as text (stripped), e.g. a time stamp or a quality column.
+    skip_rows : int, optional
+        Lines before the header (default: found, module docstring).
 
     Raises
     ------
@@ -101,8 +119,11 @@ def load_routine_csv(
     if decimal == sep:
         raise DataError(f"decimal mark and separator are both {sep!r}")
     columns = list(columns)
+    text_cols = [c for c in labels if c not in columns]
     if not columns:
         raise DataError("no columns requested")
+    if skip_rows is not None and skip_rows < 0:
+        raise DataError(f"skip_rows must be >= 0, got {skip_rows}")
     dup = {c for c in columns if columns.count(c) > 1}
     if dup:
         raise DataError(f"columns requested twice: {sorted(dup)}", column=sorted(dup)[0])
@@ -112,16 +133,12 @@ def load_routine_csv(
         raise DataError(f"cannot read {str(path)!r}: {exc.strerror or exc}") from None
     try:
         with fh:
-            reader = csv.reader(fh, delimiter=sep)
-            header: list[str] | None = None
-            for row in reader:
-                if any(cell.strip() for cell in row):
-                    header = [cell.strip() for cell in row]
-                    break
+            lines = list(csv.reader(fh, delimiter=sep))
+            header, at = _find_header(lines, [*columns, *text_cols], skip_rows)
             if header is None:
                 raise DataError(f"{str(path)!r} is empty (no header line)")
             idx: dict[str, int] = {}
-            for c in columns:
+            for c in [*columns, *text_cols]:
                 hits = [i for i, h in enumerate(header) if h == c]
                 if not hits:
                     hint = ""
@@ -139,12 +156,22 @@ def load_routine_csv(
                     )
                 idx[c] = hits[0]
             values: dict[str, list[float]] = {c: [] for c in columns}
+            texts: dict[str, list[str]] = {c: [] for c in text_cols}
             n = 0
-            for row in reader:
+            skipped = 0
+            num_idx = [idx[c] for c in columns]
+            for k in range(at + 1, len(lines)):
+                row = lines[k]
                 if not any(cell.strip() for cell in row):
                     continue
+                if n == 0 and skipped < _MAX_UNITS_LINES and _is_units_line(row, num_idx):
+                    skipped += 1
+                    continue
                 n += 1
-                line = reader.line_num
+                line = k + 1
+                for c in text_cols:
+                    i = idx[c]
+                    texts[c].append(row[i].strip().strip('"').strip() if i < len(row) else "")
                 for c in columns:
                     i = idx[c]
                     where = f"column {c!r}, row {n} (line {line})"
@@ -190,4 +217,48 @@ def load_routine_csv(
                 row=1,
             )
         out[c] = arr
-    return RoutineData(columns=out, path=str(path), header=tuple(header))
+    return RoutineData(
+        columns=out,
+        path=str(path),
+        header=tuple(header),
+        labels={c: tuple(v) for c, v in texts.items()},
+        header_line=at + 1,
+        skipped=skipped,
+    )
+
+
+def _find_header(
+    lines: list[list[str]], wanted: list[str], skip_rows: int | None
+) -> tuple[list[str] | None, int]:
+    """The header's cells and its 0-based line index (module docstring)."""
+    first: tuple[list[str], int] | None = None
+    for k, row in enumerate(lines):
+        if skip_rows is not None and k < skip_rows:
+            continue
+        if not any(cell.strip() for cell in row):
+            continue
+        cells = [cell.strip() for cell in row]
+        if skip_rows is not None:
+            return cells, k
+        if first is None:
+            first = (cells, k)
+        if all(w in cells for w in wanted):
+            return cells, k
+    return first if first is not None else (None, -1)
+
+
+def _is_units_line(row: list[str], cols: list[int]) -> bool:
+    """Whether every requested numeric cell of ``row`` is non-empty text (a units line)."""
+    for i in cols:
+        if i >= len(row):
+            return False
+        cell = row[i].strip().strip('"').strip()
+        if not cell or cell.lower() in MISSING_TOKENS:
+            return False
+        for text in {cell, cell.replace(",", ".")}:
+            try:
+                float(text)
+            except ValueError:
+                continue
+            return False  # a number (perhaps with the other decimal mark): data, not units
+    return True
