@@ -25,9 +25,10 @@ which columns of which file make a loop::
 A listed loop's ``file`` is relative to the directory (or to the glob's fixed leading part),
 matched also by name. Files no loop names are assessed with ``defaults`` (named by their stem)
 when these give ``pv`` and ``delay``. Every loop runs in a worker process
-(``concurrent.futures.ProcessPoolExecutor``, ``min(os.cpu_count(), loops, jobs)`` workers, all
-started before any loop is dispatched); a file that cannot be read or assessed is listed with
-its reason, never stops the audit.
+(``concurrent.futures.ProcessPoolExecutor``, ``min(os.cpu_count(), loops, jobs)`` workers
+started with the ``spawn`` method and one BLAS thread each, all started before any loop is
+dispatched; a script calling :func:`run_audit` needs the ``if __name__ == "__main__":``
+guard); a file that cannot be read or assessed is listed with its reason, never stops the audit.
 
 Each loop's outcome has a status: ``assessed`` (a Harris index), ``refused`` (read, but the
 index refused: non-stationary, or a data-quality check set to refuse) or ``broken`` (the file or
@@ -42,8 +43,9 @@ import logging
 import multiprocessing
 import os
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +74,7 @@ log = logging.getLogger(__name__)
 _PLOT_SAMPLES = 400
 _PLOT_LAGS = 60
 _START_TIMEOUT_S = 60.0
+_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 class LoopSpec(BaseModel):
@@ -285,6 +288,25 @@ def assess_loop(name: str, file: str, spec: LoopSpec, analysis: MonitorConfig) -
     }
 
 
+@contextmanager
+def _single_threaded_children() -> Iterator[None]:
+    """Workers spawned inside start with one BLAS/OpenMP thread each, unless the user set the
+    variables: forked or spawned workers with multithreaded OpenBLAS each spin their threads,
+    and two such workers on two cores ran 4-9 times slower than one process (measured,
+    bench/monitor_audit.py). The parent's environment is restored on exit."""
+    saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+    for k in _THREAD_VARS:
+        os.environ.setdefault(k, "1")
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _start_worker(barrier: Any) -> None:
     """Wait until every worker process has started, so that the loops spread over all."""
     try:
@@ -313,11 +335,14 @@ def run_audit(
             assert spec is not None and file is not None
             outcomes[i] = assess_loop(name, str(file), spec, analysis)
     else:
-        ctx = multiprocessing.get_context()
+        ctx = multiprocessing.get_context("spawn")
         barrier = ctx.Barrier(workers)
-        with ProcessPoolExecutor(
-            max_workers=workers, mp_context=ctx, initializer=_start_worker, initargs=(barrier,)
-        ) as pool:
+        with (
+            _single_threaded_children(),
+            ProcessPoolExecutor(
+                max_workers=workers, mp_context=ctx, initializer=_start_worker, initargs=(barrier,)
+            ) as pool,
+        ):
             futures: dict[int, Future[dict[str, Any]]] = {
                 i: pool.submit(assess_loop, name, str(file), spec, analysis)
                 for i, (name, file, spec, _) in todo
