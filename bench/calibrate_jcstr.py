@@ -76,9 +76,9 @@ import numpy as np
 from scipy.optimize import brentq, fsolve, least_squares, minimize
 from section3c import largest_tau_d, largest_tau_s, markdown, rows  # beside this script
 
+from core.record import loop_metrics
 from plants.jcstr import JCSTR, JCSTRParams
 from runtime.direct import simulate
-from runtime.record import loop_metrics
 from runtime.scenario import Scenario, load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"

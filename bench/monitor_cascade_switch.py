@@ -49,10 +49,10 @@ from agents.monitor.run_data import RunSeries, assess_series, feed_run_record
 from controllers.cascade import PIPCascade, PIPCascadeConfig
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from controllers.pi import PI, PIConfig
+from core.time import to_ticks
 from plants.cascade_ct import CascadeCTParams, SampledCascadeCT, sampled
 from runtime.direct import simulate
 from runtime.scenario import Scenario, parse_scenario
-from runtime.time import to_ticks
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("cascade_routine", "cascade_routine_primary")

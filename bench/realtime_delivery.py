@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from bus_schemas import Sample, codec, keys
-from runtime.bus import open_client
+from kernel.bus import open_client
 from runtime.launcher import launch
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_wsn.yaml"

@@ -23,8 +23,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from core.record import loop_metrics
 from runtime.direct import simulate
-from runtime.record import loop_metrics
 from runtime.scenario import Scenario, load_scenario
 
 __all__ = [

@@ -43,6 +43,7 @@ from agents.wncsca.config import WncscaConfig
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.plots import fig10
+from runtime.direct import loop_model
 from runtime.scenario import Scenario, load_scenario
 
 __all__ = [
@@ -116,7 +117,7 @@ def agent_model(path: Path = DEFAULT_SCENARIO, *, phase: str | None = None) -> L
     config = _agent_config(scenario)
     if phase is not None:
         config = config.model_copy(update={"phase": phase})
-    return LoopModel(scenario, config)
+    return loop_model(scenario, config)
 
 
 def _agent_config(scenario: Scenario) -> WncscaConfig:

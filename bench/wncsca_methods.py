@@ -31,6 +31,7 @@ from agents.wncsca.assignment import Assignment
 from agents.wncsca.fast import energy_rate, fast_periods
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from runtime.direct import loop_model
 from runtime.scenario import load_scenario
 
 __all__ = ["WORKED", "GRID", "Row", "run", "main"]
@@ -69,7 +70,7 @@ class Row:
 
 
 def _model(scenario: Any, agent: str, overrides: Mapping[str, Any]) -> LoopModel:
-    return LoopModel(scenario, scenario.nodes[agent].model_copy(update=dict(overrides)))
+    return loop_model(scenario, scenario.nodes[agent].model_copy(update=dict(overrides)))
 
 
 def run(

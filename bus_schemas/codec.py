@@ -2,7 +2,7 @@
 
 ``encode`` turns an :class:`~bus_schemas.envelope.Envelope` into bytes; ``decode_envelope``
 checks the envelope of raw bytes; ``decode_body`` validates its body against a schema.
-Every failure is a :class:`runtime.errors.SchemaError` saying what was wrong.
+Every failure is a :class:`~bus_schemas.errors.SchemaError` saying what was wrong.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import msgpack
 from pydantic import BaseModel, ValidationError
 
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope, RawEnvelope
-from runtime.errors import SchemaError
+from bus_schemas.errors import SchemaError
 
 __all__ = [
     "ENCODING",

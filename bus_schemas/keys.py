@@ -13,6 +13,7 @@ __all__ = [
     "PREFIX",
     "NAME_PATTERN",
     "check_name",
+    "intersects",
     "full",
     "relative",
     "run_prefix",
@@ -58,6 +59,27 @@ def check_name(name: str, what: str = "name") -> str:
             f"{what} {name!r} is not a valid key chunk (letters, digits, '_' and '-' only)"
         )
     return name
+
+
+def intersects(pattern: str, key: str) -> bool:
+    """Whether key expression ``pattern`` matches the concrete key ``key`` (zenoh's semantics
+    for the wildcards our patterns use: ``*`` is exactly one chunk, ``**`` zero or more).
+
+    Engines that pass messages without a bus route by it; a test checks it against
+    ``zenoh.KeyExpr.intersects`` on every key of the scenarios.
+    """
+    return _match(pattern.split("/"), key.split("/"))
+
+
+def _match(pat: list[str], key: list[str]) -> bool:
+    if not pat:
+        return not key
+    head = pat[0]
+    if head == "**":
+        return any(_match(pat[1:], key[i:]) for i in range(len(key) + 1))
+    if not key:
+        return False
+    return (head == "*" or head == key[0]) and _match(pat[1:], key[1:])
 
 
 def run_prefix(run: str) -> str:

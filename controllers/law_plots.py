@@ -2,7 +2,7 @@
 
 A multi-loop law's internal signals (the MRAC's reference model, error and adaptive parameters)
 are not on the bus, but its executions can be rebuilt from a run's record
-(:func:`runtime.direct.multi_loop_executions`) and the law replayed over them. A law that can be
+(:func:`runtime.executions.multi_loop_executions`) and the law replayed over them. A law that can be
 drawn that way registers a function in :data:`LAW_FIGURES`::
 
     figures(config, loops, executions, *, title, unit) -> dict[str, Figure]

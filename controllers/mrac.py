@@ -73,7 +73,7 @@ On the platform
 ---------------
 :class:`MultiLoopMRAC` is the law a controller node with ``loops: [...]`` runs (``type: mrac``):
 loop ``i`` measures ``x_i``, moves ``u_i`` and its set point is ``u_c,i``. :func:`replay` re-runs
-it over a run's executions (:func:`runtime.direct.multi_loop_executions`) to recover ``x_m``,
+it over a run's executions (:func:`runtime.executions.multi_loop_executions`) to recover ``x_m``,
 ``e`` and ``theta``, which are not on the bus.
 """
 
@@ -623,7 +623,7 @@ def replay(
         Its loops, in order.
     executions : iterable of (t, y, r)
         Execution time (time units), held measurement and reference command per loop, e.g. from
-        :func:`runtime.direct.multi_loop_executions` (a bus run's executions are not on the bus,
+        :func:`runtime.executions.multi_loop_executions` (a bus run's executions are not on the bus,
         the samples and set points they follow are).
 
     Returns

@@ -63,7 +63,7 @@ def series(
         ``u_c,i``).
     executions : iterable of (t, y, r)
         Execution time (time units), held measurement and reference command per loop, e.g.
-        :func:`runtime.direct.multi_loop_executions` with the time in units.
+        :func:`runtime.executions.multi_loop_executions` with the time in units.
 
     Returns
     -------

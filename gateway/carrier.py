@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from core.time import to_ticks
 from gateway.energy import EnergyMeter, projected_lifetime
 from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
 from gateway.paths import Route, deliver
 from gateway.topology import Topology
-from runtime.time import to_ticks
 
 __all__ = ["PathCarrier", "path_hops", "SENSOR", "ACTUATOR", "LINK"]
 

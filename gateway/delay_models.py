@@ -4,7 +4,7 @@ Seed 000, section I: the latency ``tau_d`` a control packet meets depends on the
 configuration, above all on the number of hops of its path. A message on a path of ``n`` hops is
 delayed by the sum of ``n`` per-hop delays (DESIGN.md, section 5); this module says what one hop
 costs. Delays are given in scenario time units (floats) in the configuration; a hop's duration is
-returned in integer ticks (:mod:`runtime.time`), so successive hops chain on integer time.
+returned in integer ticks (:mod:`core.time`), so successive hops chain on integer time.
 
 Retransmissions
 ---------------
@@ -27,7 +27,7 @@ only after the attempt, the last because it is the transmission)::
     tdma         wait for the link's next slot + (a - 1) * frame + tx_time
                  (a failed attempt is retried in the link's slot of the next frame)
 
-Rounding: each attempt's draw is rounded to the nearest tick (:func:`runtime.time.to_ticks`), so a
+Rounding: each attempt's draw is rounded to the nearest tick (:func:`core.time.to_ticks`), so a
 hop of ``a`` attempts is off by at most ``a / 2`` ticks, the constant model costs exactly
 ``a * to_ticks(delay)`` ticks, and TDMA is computed wholly in ticks (slot and transmission
 lengths rounded once). Configure delays much larger than one tick (1e-6 time unit).
@@ -57,7 +57,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from runtime.time import TICKS_PER_UNIT, to_ticks
+from core.time import TICKS_PER_UNIT, to_ticks
 
 __all__ = [
     "ConstantDelay",

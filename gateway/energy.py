@@ -48,9 +48,9 @@ from dataclasses import dataclass, field
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from core.time import to_units
 from gateway.paths import Delivery, Route
 from gateway.topology import NodeKind, Topology
-from runtime.time import to_units
 
 __all__ = [
     "EnergyConfig",

@@ -32,8 +32,8 @@ from typing import Literal
 
 import numpy as np
 
+from core.time import to_units
 from gateway.paths import Route, deliver
-from runtime.time import to_units
 
 __all__ = ["DelayEstimate", "TimestampEstimator", "ping_estimate", "hops_estimate"]
 

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.monitor.command import add_assess_arguments, run_from_args
-from runtime.errors import ConfigError, WncsError
+from core.errors import ConfigError, SchemaError, WncsError
 
 __all__ = ["main", "build_parser"]
 
@@ -169,31 +169,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_node(args: argparse.Namespace) -> int:
-    from runtime.bus import open_client
+    from kernel.bus import open_client
+    from runtime.nodes import bus_node, check_node, clock_runner
     from runtime.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
         scenario = scenario.model_copy(update={"seed": args.seed})
     if args.name != "clock":
-        from runtime.nodes import node_class
-
         try:
-            cls = node_class(scenario, args.name)
+            check_node(scenario, args.name)
         except KeyError as err:
             raise ConfigError(str(err.args[0])) from err
     session = open_client(args.connect)
     try:
         if args.name == "clock":
-            from runtime.clock import ClockRunner
-
-            return ClockRunner(session, args.run_id, scenario, realtime=args.realtime).run()
-        from runtime.node import NodeContext
-
-        ctx = NodeContext(
-            args.name, args.run_id, scenario, session, {"out": args.out, "engine": args.engine}
-        )
-        return cls(ctx).run()
+            return clock_runner(scenario, session, args.run_id, realtime=args.realtime).run()
+        options = {"out": args.out, "engine": args.engine}
+        return bus_node(scenario, args.name, args.run_id, session, options).run()
     finally:
         session.close()
 
@@ -232,8 +225,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from agents.wncsca.analysis import analyze, parse_delays
     from agents.wncsca.timeline import format_timeline
+    from runtime.analysis import analyze, parse_delays
     from runtime.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -303,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as err:
         print(f"wncs {args.command}: {err}", file=sys.stderr)
         return 2
-    except WncsError as err:
+    except (WncsError, SchemaError) as err:
         print(f"wncs {args.command}: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -1,41 +1,59 @@
-"""The historian node: records every data message of the run in ``history.sqlite``.
+"""The historian: records every data message of the run in ``history.sqlite``.
 
 It is a participant like any other, so it handles each round's messages after they are all in,
 in ``(key, src, seq)`` order: the table's order is deterministic and two runs with the same
 scenario and seed write identical message tables (see :func:`runtime.history.messages_digest`).
+:class:`Recorder` is the behaviour (it writes what it is handed), :class:`HistorianNode` the bus
+node that also records each tick.
 """
 
 from __future__ import annotations
 
 import json
+import sqlite3
 from pathlib import Path
+from typing import Any
 
 from bus_schemas import Stop, Tick, codec
-from bus_schemas.envelope import RawEnvelope
+from core.behaviour import Behaviour, Incoming
+from kernel.node import BusNode, NodeContext
 from runtime import history
-from runtime.node import Node, NodeContext
+from runtime.artefacts import HISTORY_FILE
 
-__all__ = ["HistorianNode", "HISTORY_FILE"]
+__all__ = ["Recorder", "HistorianNode", "HISTORY_FILE"]
 
-HISTORY_FILE = "history.sqlite"
 _COMMIT_EVERY = 200  # rounds
 
 
-class HistorianNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class Recorder(Behaviour):
+    """Writes every message it is handed (subscribed to ``**``) into an open history database."""
+
+    def __init__(self, name: str, db: sqlite3.Connection) -> None:
+        super().__init__(name)
+        self.db = db
+        self.subscribe("**", None, self._record)
+
+    def _record(self, env: Incoming, body: dict[str, Any]) -> None:
+        self.db.execute(
+            "INSERT INTO messages (round, t, key, src, seq, body) VALUES (?, ?, ?, ?, ?, ?)",
+            (env.round, env.t, self.current_key, env.src, env.seq, codec.pack_mapping(body)),
+        )
+
+
+class HistorianNode(BusNode):
+    def __init__(self, ctx: NodeContext, *, scenario_name: str, seed: int) -> None:
         out = Path(ctx.options.get("out") or ".")
         out.mkdir(parents=True, exist_ok=True)
         self.path = out / HISTORY_FILE
         if self.path.exists():
             self.path.unlink()
         self.db = history.connect(self.path, create=True)
-        self._set_meta("run_id", self.run_id)
-        self._set_meta("scenario", self.scenario.name)
-        self._set_meta("seed", self.scenario.seed)
+        super().__init__(ctx, Recorder(ctx.name, self.db))
+        self._set_meta("run_id", ctx.run_id)
+        self._set_meta("scenario", scenario_name)
+        self._set_meta("seed", seed)
         self._set_meta("engine", ctx.options.get("engine", "processes"))
         self.db.commit()
-        self.subscribe("**", None, self._record)
 
     def _set_meta(self, name: str, value: object) -> None:
         self.db.execute(
@@ -49,13 +67,6 @@ class HistorianNode(Node):
         )
         if tick.round % _COMMIT_EVERY == 0:
             self.db.commit()
-
-    def _record(self, env: RawEnvelope, body: dict) -> None:
-        rel = self.current_key
-        self.db.execute(
-            "INSERT INTO messages (round, t, key, src, seq, body) VALUES (?, ?, ?, ?, ?, ?)",
-            (env.round, env.t, rel, env.src, env.seq, codec.pack_mapping(body)),
-        )
 
     def on_stop(self, stop: Stop) -> None:
         self._set_meta("stop", stop.model_dump())

@@ -13,16 +13,23 @@ unknown mode or loop is refused with a message naming it (exit code 2), and noth
 from __future__ import annotations
 
 import json
-import threading
+import math
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
-from bus_schemas import InjectRequest, codec, keys
-from runtime.errors import ConfigError
+from agents.wncsca.config import MODES
+from bus_schemas import InjectRequest, ModeRequest, NetworkEvent, Setpoint, codec, keys
+from bus_schemas.errors import SchemaError
+from core.errors import ConfigError
+from gateway.topology import Topology, parse_event
+from kernel.bus import put_when_heard
+from kernel.clock import Interpreter
+from runtime.artefacts import SCENARIO_FILE
+from runtime.scenario import Scenario, load_scenario
 
-__all__ = ["parse_fields", "build_request", "send"]
+__all__ = ["parse_fields", "build_request", "send", "interpreter"]
 
 
 def parse_fields(words: list[str]) -> dict[str, Any]:
@@ -40,9 +47,6 @@ def parse_fields(words: list[str]) -> dict[str, Any]:
 
 
 def _known_nodes(run_dir: Path, network: str | None) -> tuple[str, set[str]]:
-    from gateway.topology import Topology
-    from runtime.launcher import SCENARIO_FILE
-    from runtime.scenario import load_scenario
 
     scenario = load_scenario(run_dir / SCENARIO_FILE)
     gateways = sorted(n for n, c in scenario.nodes.items() if c.kind == "gateway")
@@ -64,11 +68,6 @@ def _known_nodes(run_dir: Path, network: str | None) -> tuple[str, set[str]]:
 
 def _ops_request(kind: str, words: list[str], run_dir: Path | None) -> InjectRequest:
     """``mode MODE`` or ``setpoint LOOP=VALUE``, checked against the run's scenario if known."""
-    import math
-
-    from agents.wncsca.config import MODES
-    from runtime.launcher import SCENARIO_FILE
-    from runtime.scenario import load_scenario
 
     scenario = load_scenario(run_dir / SCENARIO_FILE) if run_dir is not None else None
     if kind == "mode":
@@ -95,8 +94,6 @@ def build_request(
     event_type: str, words: list[str], *, run_dir: Path | None, network: str | None
 ) -> InjectRequest:
     """Validate a request given on the command line; raise ``ConfigError`` naming the problem."""
-    from gateway.topology import parse_event
-
     if event_type in ("mode", "setpoint"):
         return _ops_request(event_type, words, run_dir)
 
@@ -128,34 +125,32 @@ def build_request(
 
 def send(endpoint: str, run_id: str, request: InjectRequest, *, timeout: float = 10.0) -> None:
     """Publish the request to the run's clock once the clock is listening."""
-    import zenoh
+    payload = codec.encode(run=run_id, src="inject", seq=0, round=0, t=0, body=request)
+    if not put_when_heard(endpoint, keys.full(run_id, keys.inject()), payload, timeout=timeout):
+        raise ConfigError(f"no clock of run {run_id!r} is listening at {endpoint}")
 
-    from runtime.bus import open_client
 
-    session = open_client(endpoint)
-    try:
-        publisher = session.declare_publisher(
-            keys.full(run_id, keys.inject()),
-            encoding=zenoh.Encoding(codec.ENCODING),
-            congestion_control=zenoh.CongestionControl.BLOCK,
-        )
-        matched = threading.Event()
-        listener = publisher.declare_matching_listener(
-            lambda status: matched.set() if status.matching else None
-        )
-        if not publisher.matching_status.matching and not matched.wait(timeout):
-            raise ConfigError(f"no clock of run {run_id!r} is listening at {endpoint}")
-        publisher.put(
-            codec.encode(
-                run=run_id,
-                src="inject",
-                seq=0,
-                round=0,
-                t=0,
-                body=request,
-            )
-        )
-        listener.undeclare()
-        publisher.undeclare()
-    finally:
-        session.close()
+def interpreter(scenario: Scenario) -> Interpreter:
+    """How the clock of a run of ``scenario`` turns an external request into the message it
+    stamps: a network event for its gateway (``events/<network>``), a mode or a set-point
+    request as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
+    gateways = sorted(n for n, c in scenario.nodes.items() if c.kind == "gateway")
+    has_agent = scenario.agent_node() is not None
+
+    def interpret(request: InjectRequest) -> tuple[str, BaseModel]:
+        if request.mode is not None:
+            if not has_agent or request.mode not in MODES:
+                raise SchemaError(f"mode {request.mode!r}: needs an agent and one of {MODES}")
+            return keys.ops_mode(), ModeRequest(mode=request.mode)
+        if request.setpoint is not None:
+            loop = request.setpoint.get("loop")
+            if loop not in scenario.loops:
+                raise SchemaError(f"setpoint: unknown loop {loop!r}")
+            return keys.setpoint(loop), Setpoint(value=request.setpoint.get("value"))
+        network = request.network or (gateways[0] if len(gateways) == 1 else None)
+        if network not in gateways:
+            raise SchemaError(f"network {request.network!r} is not one gateway of {gateways}")
+        parse_event(request.event)
+        return keys.network_events(network), NetworkEvent(event=request.event)
+
+    return interpret

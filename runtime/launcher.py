@@ -27,18 +27,19 @@ from typing import Any, TextIO
 import yaml
 
 from bus_schemas import Stop, Tick, codec, keys
-from runtime.errors import ConfigError, NodeFault, SchemaError
+from core.errors import NodeFault, SchemaError
+from core.time import to_units
+from kernel.bus import is_put
+from runtime.artefacts import RUN_FILE, SCENARIO_FILE
+from runtime.direct import simulate
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
-from runtime.time import to_units
 
 __all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
 
 log = logging.getLogger(__name__)
 
 ENGINES = ("processes", "threads", "direct")
-RUN_FILE = "run.json"
-SCENARIO_FILE = "scenario.yaml"
 _EXIT_GRACE_S = 10.0
 
 
@@ -109,10 +110,8 @@ class _Progress:
         self.stop_at = time.perf_counter()
 
     def on_alive(self, sample: Any) -> None:
-        import zenoh
-
         name = str(sample.key_expr).rsplit("/", 1)[-1]
-        if sample.kind == zenoh.SampleKind.PUT:
+        if is_put(sample):
             self.alive.add(name)
 
     def show(self, final: bool = False) -> None:
@@ -148,12 +147,6 @@ def launch(
     scenario = load_scenario(scenario_path)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
-    if engine == "direct" and scenario.agent_node() is not None:
-        raise ConfigError(
-            f"{scenario_path}: nodes.{scenario.agent_node()}: the direct engine has no "
-            "coordination agent; run it on the bus (--engine threads or processes), or ask "
-            "for the agent's analysis alone with `wncs analyze`"
-        )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / SCENARIO_FILE).write_text(
@@ -171,8 +164,6 @@ def launch(
     wall0 = time.perf_counter()
     if engine == "direct":
         _write_json(out / RUN_FILE, run_info)
-        from runtime.direct import simulate
-
         rec = simulate(scenario)
         rec.wall_s = time.perf_counter() - wall0
         save_record(rec, out)
@@ -204,7 +195,7 @@ def _launch_bus(
     progress: TextIO | None,
     wall0: float,
 ) -> RunResult:
-    from runtime.bus import DEFAULT_LISTEN, open_router
+    from kernel.bus import DEFAULT_LISTEN, open_router
     from runtime.history import load_record
 
     run_id = run_info["run_id"]
@@ -391,10 +382,9 @@ def _run_threads(
     engine: str,
     prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
-    from runtime.bus import open_client
-    from runtime.clock import ClockRunner
-    from runtime.node import NodeContext
-    from runtime.nodes import node_class
+    from kernel.bus import open_client
+    from kernel.clock import ClockRunner
+    from runtime.nodes import bus_node, clock_runner
 
     errors: dict[str, str] = {}
     result: dict[str, int] = {}
@@ -407,16 +397,14 @@ def _run_threads(
         session = open_client(endpoint)
         try:
             if name == "clock":
-                runner = ClockRunner(session, run_id, scenario, realtime=realtime)
+                runner = clock_runner(scenario, session, run_id, realtime=realtime)
                 clock.append(runner)
                 result["clock"] = runner.run()
                 if runner.error:
                     errors["clock"] = runner.error
             else:
-                ctx = NodeContext(
-                    name, run_id, scenario, session, {"out": str(out), "engine": engine}
-                )
-                node = node_class(scenario, name)(ctx)
+                options = {"out": str(out), "engine": engine}
+                node = bus_node(scenario, name, run_id, session, options)
                 with lock:
                     if aborted.is_set():
                         return  # the run was cancelled while this node was being built

@@ -1,36 +1,62 @@
-"""Which class runs a node of each kind (the scenario's ``kind:``, plus the reserved nodes)."""
+"""A scenario's nodes and clock on the bus: each node's behaviour
+(:func:`runtime.direct.behaviour_of`, the same the direct engine runs) on the kernel, and the
+historian, the bus engines' own recorder (:mod:`runtime.historian`).
+"""
 
 from __future__ import annotations
 
-from agents.monitor.node import MonitorNode
-from agents.operator.node import OperatorNode
-from agents.wncsca.node import WncscaNode
-from controllers.node import ControllerNode
-from gateway.node import NetworkNode
-from plants.node import PlantNode
+from typing import Any
+
+from core.time import to_ticks
+from kernel.bus import Session
+from kernel.clock import ClockRunner, ClockSpec
+from kernel.node import BusNode, NodeContext
+from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
-from runtime.node import Node
+from runtime.inject import interpreter
 from runtime.scenario import Scenario
 
-__all__ = ["NODE_CLASSES", "node_class"]
-
-NODE_CLASSES: dict[str, type[Node]] = {
-    "plant": PlantNode,
-    "controller": ControllerNode,
-    "network": NetworkNode,
-    "gateway": NetworkNode,
-    "operator": OperatorNode,
-    "agent": WncscaNode,
-    "monitor": MonitorNode,
-}
+__all__ = ["bus_node", "check_node", "clock_spec", "clock_runner"]
 
 
-def node_class(scenario: Scenario, name: str) -> type[Node]:
-    """The class of node ``name`` (``KeyError`` with the known names if there is none)."""
+def bus_node(
+    scenario: Scenario,
+    name: str,
+    run_id: str,
+    session: Session,
+    options: dict[str, Any] | None = None,
+) -> BusNode:
+    """Node ``name`` of ``scenario`` as a bus participant of run ``run_id`` on ``session``."""
+    ctx = NodeContext(
+        name,
+        run_id,
+        session,
+        participants=frozenset(scenario.participants()),
+        round_timeout_s=scenario.clock.round_timeout_s,
+        options=dict(options or {}),
+    )
     if name == "historian":
-        return HistorianNode
-    cfg = scenario.nodes.get(name)
-    if cfg is None:
-        known = ", ".join(["clock", *scenario.participants()])
-        raise KeyError(f"scenario {scenario.name!r} has no node {name!r} (nodes: {known})")
-    return NODE_CLASSES[cfg.kind]
+        return HistorianNode(ctx, scenario_name=scenario.name, seed=scenario.seed)
+    return BusNode(ctx, behaviour_of(scenario, name))
+
+
+def clock_spec(scenario: Scenario) -> ClockSpec:
+    """What the clock of a run of ``scenario`` needs to know."""
+    return ClockSpec(
+        participants=frozenset(scenario.participants()),
+        end=to_ticks(scenario.end_time),
+        time_unit=scenario.time_unit,
+        round_timeout_s=scenario.clock.round_timeout_s,
+        startup_timeout_s=scenario.clock.startup_timeout_s,
+        max_microsteps=scenario.clock.max_microsteps,
+        may_drop=frozenset(scenario.clock.may_drop),
+    )
+
+
+def clock_runner(
+    scenario: Scenario, session: Session, run_id: str, *, realtime: float | None = None
+) -> ClockRunner:
+    """The clock of run ``run_id`` of ``scenario`` on ``session``."""
+    return ClockRunner(
+        session, run_id, clock_spec(scenario), interpret=interpreter(scenario), realtime=realtime
+    )

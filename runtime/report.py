@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from runtime.record import RunRecord, summarize
-from runtime.time import to_units
+from core.record import RunRecord, summarize
+from core.time import to_units
 
 if TYPE_CHECKING:
     from runtime.scenario import Scenario
@@ -47,6 +47,8 @@ def save_record(rec: RunRecord, out: Path) -> None:
         "hops": rec.hops,
         "configurations": rec.configurations,
         "net_nodes": rec.net_nodes,
+        "wncsca": rec.wncsca,
+        "monitor": rec.monitor,
         "plants": {
             n: {"state_names": p.state_names, "t": p.t, "x": p.x} for n, p in rec.plants.items()
         },
@@ -56,7 +58,7 @@ def save_record(rec: RunRecord, out: Path) -> None:
 
 def load_saved_record(out: Path) -> RunRecord:
     """Inverse of :func:`save_record`."""
-    from runtime.record import LoopRecord, PlantRecord
+    from core.record import LoopRecord, PlantRecord
 
     data = json.loads((out / RECORD_FILE).read_text())
     rec = RunRecord(
@@ -66,6 +68,8 @@ def load_saved_record(out: Path) -> RunRecord:
     rec.hops = data.get("hops", {})
     rec.configurations = data.get("configurations", [])
     rec.net_nodes = data.get("net_nodes", {})
+    rec.wncsca = data.get("wncsca", {})
+    rec.monitor = data.get("monitor", {})
     for n, lp in data["loops"].items():
         lp["setpoints"] = [tuple(v) for v in lp["setpoints"]]
         rec.loops[n] = LoopRecord(**lp)
@@ -118,7 +122,7 @@ def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) 
         paths.append(path)
     if rec.wncsca:
         from agents.wncsca.plots import run_plots
-        from runtime.record import wncsca_summary
+        from core.record import wncsca_summary
 
         paths += run_plots(
             wncsca_summary(rec.wncsca), out, unit=unit, end_time=to_units(rec.end_time)
@@ -133,7 +137,7 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
 
     For every multi-loop controller whose law registers a figure function
     (:data:`controllers.law_plots.LAW_FIGURES`), its executions are rebuilt from ``rec``
-    (:func:`runtime.direct.multi_loop_executions`) and the law draws its own signals over them;
+    (:func:`runtime.executions.multi_loop_executions`) and the law draws its own signals over them;
     figure ``key`` of controller ``name`` is saved as ``<law type>_<name>_<key>.png`` (for the
     MRAC: ``mrac_<name>_states.png``, ``_outputs``, ``_errors``, ``_theta``).
     """
@@ -143,7 +147,7 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     from controllers.law_plots import figures_of
-    from runtime.direct import multi_loop_executions
+    from runtime.executions import multi_loop_executions
 
     paths = []
     for name, cfg in sorted(scenario.nodes.items()):

@@ -1,7 +1,7 @@
 """Scenario files: the process graph, loops, set-point schedule and timing of one run.
 
 A scenario is YAML validated into :class:`Scenario` before anything starts; every problem
-becomes a :class:`~runtime.errors.ConfigError` naming the file and the dotted field
+becomes a :class:`~core.errors.ConfigError` naming the file and the dotted field
 (``scenarios/x.yaml: loops.level.tau_s: Input should be greater than 0``).
 
 Shape (see ``scenarios/jcstr_benchmark.yaml``)::
@@ -47,11 +47,11 @@ from controllers.registry import (
     is_multi_loop,
     uses_feedforward,
 )
+from core.errors import ConfigError
+from core.time import to_ticks
 from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
-from runtime.errors import ConfigError
-from runtime.time import to_ticks
 
 __all__ = [
     "RESERVED_NODES",

@@ -63,7 +63,7 @@ def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) 
 @pytest.fixture(scope="session")
 def router():
     """A real zenoh router in this process on a free loopback port: ``(session, endpoint)``."""
-    from runtime.bus import open_router
+    from kernel.bus import open_router
 
     session, locators = open_router("tcp/127.0.0.1:0")
     yield session, locators[0]

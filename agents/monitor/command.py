@@ -305,8 +305,8 @@ def _assess_run(
         feed_history,
         feed_record,
     )
+    from core.time import to_ticks
     from runtime.scenario import load_scenario
-    from runtime.time import to_ticks
 
     scen_file = run_dir / "scenario.yaml"
     if not scen_file.exists():
@@ -374,7 +374,7 @@ def run(
     """``wncs assess``: assess, print, write the JSON report; return the exit code."""
     from agents.monitor.errors import DataError
     from agents.monitor.report import format_report
-    from runtime.errors import ConfigError
+    from core.errors import ConfigError
 
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr

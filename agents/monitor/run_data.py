@@ -460,7 +460,7 @@ def feed_record(path: str | Path, series: RunSeries, *, until: int) -> int:
 
 
 def feed_run_record(rec: Any, series: RunSeries, *, until: int) -> int:
-    """:func:`feed_record` on a :class:`runtime.record.RunRecord` in memory (a direct run)."""
+    """:func:`feed_record` on a :class:`core.record.RunRecord` in memory (a direct run)."""
     events: list[tuple[int, int, str, BaseModel]] = []
     subs = dict(series.subscriptions())
     for name, plant in rec.plants.items():

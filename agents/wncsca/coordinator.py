@@ -78,14 +78,18 @@ class Coordinator:
     Parameters
     ----------
     scenario : Scenario
-        The validated scenario; ``config`` defaults to its agent node's configuration.
+        The validated scenario.
+    model : LoopModel
+        The agent's model of its loops, handed its simulator
+        (:func:`runtime.agent_model.coordinator` builds both).
+    config : WncscaConfig
+        The agent's configuration.
     """
 
-    def __init__(self, scenario: Any, config: WncscaConfig | None = None) -> None:
-        name = scenario.agent_node()
-        self.config = config or (scenario.nodes[name] if name else WncscaConfig())
+    def __init__(self, scenario: Any, model: LoopModel, config: WncscaConfig) -> None:
+        self.config = config
         self.scenario = scenario
-        self.model = LoopModel(scenario, self.config)
+        self.model = model
         self.loops = self.model.loops
         self.benchmark = dict(self.model.benchmark)
         self.control_periods = dict(self.benchmark)

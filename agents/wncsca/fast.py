@@ -34,7 +34,7 @@ agent's whole set-point test (the test, step phases and end time of
   ``monitor_period``: where the agent judges the plant output), in the periods whose output at
   the sampling and execution instants comes within a tenth of the step of the largest.
 
-The overshoot is measured as :func:`runtime.record.loop_metrics` does (from the loop's step to
+The overshoot is measured as :func:`core.record.loop_metrics` does (from the loop's step to
 its next step or the end), worst case over the step phases. The JCSTR level, a linear plant,
 is predicted exactly (to 0.01 points); for small temperature steps from equilibrium the
 prediction is within a point and the difference halves with the step (the linearisation's);
@@ -84,7 +84,7 @@ from numpy.typing import NDArray
 from agents.wncsca.assignment import Assignment, Trial
 from agents.wncsca.model import LoopModel
 from controllers.registry import uses_feedforward
-from runtime.time import TICKS_PER_UNIT, to_ticks
+from core.time import TICKS_PER_UNIT, to_ticks
 
 __all__ = ["OBJECTIVES", "LinearPredictor", "energy_rate", "fast_periods"]
 
@@ -386,7 +386,7 @@ class LinearPredictor:
 
     def __init__(self, model: LoopModel, delays: Mapping[str, float]) -> None:
         cfg = model.config
-        scenario = model.scenario_at()
+        scenario = model.trials.scenario
         self.loops: tuple[str, ...] = tuple(model.loops)
         self.index = {n: k for k, n in enumerate(self.loops)}
         self.end = to_ticks(scenario.end_time)

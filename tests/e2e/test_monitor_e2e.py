@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.monitor.node import assessment_body
+from agents.monitor.behaviour import assessment_body
 from bus_schemas import MonitorAssessment, codec, keys
 from runtime.history import connect
 from tests.conftest import SCENARIOS, write_variant

@@ -20,10 +20,10 @@ import pytest
 import zenoh
 
 from bus_schemas import Tick, codec, keys
-from runtime.bus import open_client
+from core.record import summarize
+from kernel.bus import open_client
 from runtime.direct import simulate
 from runtime.history import messages_digest
-from runtime.record import summarize
 from runtime.scenario import load_scenario
 from tests.conftest import (
     BENCHMARK,

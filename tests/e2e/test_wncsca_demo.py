@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.wncsca.model import LoopModel
 from bus_schemas import keys
+from runtime.direct import loop_model
 from runtime.history import connect, messages_digest
 from runtime.scenario import load_scenario
 from tests.conftest import SCENARIOS
@@ -85,7 +85,7 @@ def test_the_slow_route_is_rejected_for_the_level_loop_and_the_alternative_accep
 def test_negotiated_periods_hold_on_the_model_and_extend_the_network_lifetime(demo):
     _, s = demo
     sc = load_scenario(WNCS_SCENARIO)
-    model = LoopModel(sc, sc.nodes["wncsca"])
+    model = loop_model(sc, sc.nodes["wncsca"])
     for a in (a for a in s["wncsca"]["assignments"] if "search" in a):
         ev = model.evaluate(a["control_periods"], a["search"]["delays"])
         assert all(v <= sc.nodes["wncsca"].overshoot_limit for v in ev.overshoot_pct.values())

@@ -7,9 +7,9 @@ from __future__ import annotations
 import yaml
 
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from core.record import summarize
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.record import summarize
 from runtime.scenario import load_scenario
 from tests.conftest import SCENARIOS, load_yaml
 from tests.integration.test_column_mrac_bus import assert_traces_equal

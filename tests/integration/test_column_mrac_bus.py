@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 
 from controllers.mrac import replay
-from runtime.direct import multi_loop_executions, simulate
+from core.record import summarize
+from core.time import to_units
+from runtime.direct import simulate
+from runtime.executions import multi_loop_executions
 from runtime.history import load_record
 from runtime.launcher import launch
-from runtime.record import summarize
 from runtime.scenario import load_scenario
-from runtime.time import to_units
 from tests.conftest import SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -8,11 +8,11 @@ import pytest
 from pydantic import BaseModel, ConfigDict
 
 from bus_schemas import keys
-from gateway.node import NetworkNode
-from runtime import nodes
+from core.record import summarize
+from gateway.behaviour import NetworkBehaviour
+from runtime import direct as direct_engine
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.record import summarize
 from runtime.scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_column_mrac_bus import assert_traces_equal
@@ -92,12 +92,12 @@ class _Raw(BaseModel):
     model_config = ConfigDict(extra="allow", frozen=True)
 
 
-class _NoisyNetwork(NetworkNode):
+class _NoisyNetwork(NetworkBehaviour):
     """The wired network, which at 0.05 h also delivers nonsense on link/x1/rx: a vector of
     text, a vector of the wrong length and a negative send time."""
 
-    def __init__(self, ctx) -> None:
-        super().__init__(ctx)
+    def __init__(self, name, scenario) -> None:
+        super().__init__(name, scenario)
         self.at(T_BAD, self._nonsense)
 
     def _nonsense(self) -> None:
@@ -108,7 +108,7 @@ class _NoisyNetwork(NetworkNode):
 
 def test_malformed_estimates_are_dropped_and_change_nothing(tmp_path, monkeypatch):
     path = write_variant(tmp_path, QDC, "qdc.yaml", _short(0.1))
-    monkeypatch.setitem(nodes.NODE_CLASSES, "network", _NoisyNetwork)
+    monkeypatch.setitem(direct_engine.BEHAVIOURS, "network", _NoisyNetwork)
     res = launch(path, tmp_path / "run", engine="threads")
     assert res.code == 0, res.error
     assert res.summary["messages"]["dropped_invalid"]["link/x1/rx"] == 3

@@ -11,8 +11,8 @@ import threading
 import pytest
 
 from bus_schemas import Tick, codec, keys
-from runtime.bus import open_client
-from runtime.errors import ConfigError
+from core.errors import ConfigError
+from kernel.bus import open_client
 from runtime.inject import build_request, send
 from runtime.launcher import launch
 from tests.conftest import SCENARIOS, wait_until, write_variant

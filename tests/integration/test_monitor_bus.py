@@ -8,11 +8,11 @@ import json
 
 import pytest
 
-from agents.monitor.node import assessment_body
+from agents.monitor.behaviour import assessment_body
 from bus_schemas import MonitorAssessment, codec, keys
+from core.time import to_ticks
 from runtime.cli import main
 from runtime.launcher import launch
-from runtime.time import to_ticks
 from tests.conftest import SCENARIOS, write_variant
 
 CASCADE = SCENARIOS / "cascade_routine.yaml"

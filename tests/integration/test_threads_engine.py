@@ -8,11 +8,11 @@ import threading
 import msgpack
 
 from bus_schemas import keys
-from runtime.bus import open_client
+from core.record import summarize
+from kernel.bus import open_client
 from runtime.direct import simulate
 from runtime.history import messages_digest
 from runtime.launcher import launch
-from runtime.record import summarize
 from runtime.scenario import load_scenario
 from tests.conftest import BENCHMARK, wait_until
 
@@ -159,15 +159,15 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
 def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, monkeypatch):
     """The launcher cancels the clock, which stops the other nodes: no node thread outlives the
     run (a daemon thread still in zenoh at interpreter exit aborts the process)."""
-    from agents.operator.node import OperatorNode
-    from runtime import nodes
+    from agents.operator.behaviour import OperatorBehaviour
+    from runtime import direct
 
-    class Failing(OperatorNode):
-        def __init__(self, ctx) -> None:
-            super().__init__(ctx)
+    class Failing(OperatorBehaviour):
+        def __init__(self, name, scenario) -> None:
+            super().__init__(name, scenario)
             raise ValueError("boom at start")
 
-    monkeypatch.setitem(nodes.NODE_CLASSES, "operator", Failing)
+    monkeypatch.setitem(direct.BEHAVIOURS, "operator", Failing)
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1
     assert "node 'operator' failed while starting: ValueError: boom at start" in res.error
@@ -179,25 +179,25 @@ def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, mo
 def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, monkeypatch):
     """A node that subscribes only after the clock stopped the run never sees the ``Stop``: the
     launcher aborts it (a loaded machine makes this race real)."""
-    from agents.operator.node import OperatorNode
-    from controllers.node import ControllerNode
-    from runtime import nodes
+    from agents.operator.behaviour import OperatorBehaviour
+    from controllers.behaviour import ControllerBehaviour
+    from runtime import direct
 
-    class Failing(OperatorNode):
-        def __init__(self, ctx) -> None:
-            super().__init__(ctx)
+    class Failing(OperatorBehaviour):
+        def __init__(self, name, scenario) -> None:
+            super().__init__(name, scenario)
             raise ValueError("boom at start")
 
-    class Slow(ControllerNode):
-        def __init__(self, ctx) -> None:
+    class Slow(ControllerBehaviour):
+        def __init__(self, name, scenario) -> None:
             # still being built when the clock stops the run: wait for the clock to leave
             clock = [th for th in threading.enumerate() if th.name == "clock"]
             for th in clock:
                 th.join(timeout=60)
-            super().__init__(ctx)
+            super().__init__(name, scenario)
 
-    monkeypatch.setitem(nodes.NODE_CLASSES, "operator", Failing)
-    monkeypatch.setitem(nodes.NODE_CLASSES, "controller", Slow)
+    monkeypatch.setitem(direct.BEHAVIOURS, "operator", Failing)
+    monkeypatch.setitem(direct.BEHAVIOURS, "controller", Slow)
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1 and "boom at start" in res.error
     names = set(load_scenario(BENCHMARK).participants()) | {"clock"}

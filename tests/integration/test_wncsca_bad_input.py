@@ -14,17 +14,18 @@ from __future__ import annotations
 import pytest
 from pydantic import BaseModel, ConfigDict
 
-from agents.operator.node import OperatorNode
+from agents.operator.behaviour import OperatorBehaviour
 from agents.wncsca.timeline import format_timeline
 from bus_schemas import keys
-from gateway.node import NetworkNode
-from runtime import nodes
+from gateway.behaviour import NetworkBehaviour
+from runtime import direct
 from runtime.launcher import launch
 from tests.conftest import SCENARIOS, write_variant
 
 pytestmark = pytest.mark.slow
 
 T_BAD = 500_000  # 0.5 pu, ticks
+NOISY = {"network", "operator"}  # the scenario's nodes that publish nonsense
 
 
 class _Raw(BaseModel):
@@ -53,10 +54,11 @@ BAD_PROPOSALS = {
 }
 
 
-class _NoisyGateway(NetworkNode):
-    def __init__(self, ctx) -> None:
-        super().__init__(ctx)
-        self.at(T_BAD, self._nonsense)
+class _NoisyGateway(NetworkBehaviour):
+    def __init__(self, name, scenario) -> None:
+        super().__init__(name, scenario)
+        if name in NOISY:  # not the operator of the agent's own model (same behaviour registry)
+            self.at(T_BAD, self._nonsense)
 
     def _nonsense(self) -> None:
         for pid, (paths, _) in BAD_PROPOSALS.items():
@@ -66,10 +68,11 @@ class _NoisyGateway(NetworkNode):
             self.publish(keys.net_proposal(), _Raw(**body))
 
 
-class _NoisyOperator(OperatorNode):
-    def __init__(self, ctx) -> None:
-        super().__init__(ctx)
-        self.at(T_BAD, self._nonsense)
+class _NoisyOperator(OperatorBehaviour):
+    def __init__(self, name, scenario) -> None:
+        super().__init__(name, scenario)
+        if name in NOISY:  # not the operator of the agent's own model (same behaviour registry)
+            self.at(T_BAD, self._nonsense)
 
     def _nonsense(self) -> None:
         self.publish(keys.ops_mode(), _Raw(mode="party"))
@@ -92,8 +95,8 @@ def test_bad_requests_are_refused_and_change_nothing(tmp_path, monkeypatch):
     scenario = _variant(tmp_path)
     clean = launch(scenario, tmp_path / "clean", engine="threads")
     assert clean.code == 0, clean.error
-    monkeypatch.setitem(nodes.NODE_CLASSES, "gateway", _NoisyGateway)
-    monkeypatch.setitem(nodes.NODE_CLASSES, "operator", _NoisyOperator)
+    monkeypatch.setitem(direct.BEHAVIOURS, "gateway", _NoisyGateway)
+    monkeypatch.setitem(direct.BEHAVIOURS, "operator", _NoisyOperator)
     noisy = launch(scenario, tmp_path / "noisy", engine="threads")
     assert noisy.code == 0, noisy.error
 

@@ -12,9 +12,8 @@ from types import ModuleType
 
 import pytest
 
-from agents.wncsca.model import LoopModel
-from runtime.direct import simulate
-from runtime.record import loop_metrics
+from core.record import loop_metrics
+from runtime.direct import loop_model, simulate
 from runtime.scenario import Scenario, load_scenario
 from tests.conftest import BENCHMARK, PAPER_OS_LEVEL, ROOT, SCENARIOS
 
@@ -118,7 +117,7 @@ def test_wncs_level_gains_reproduce_the_papers_delay_figure():
     assert os_delay == pytest.approx(OS_LIMIT, abs=0.1)
 
     # the agent's own model of jcstr_wncs (wired paths, its 8 pu test) at the fixed phase agrees
-    model = LoopModel(wncs, wncs.nodes["wncsca"].model_copy(update={"phase": "fixed"}))
+    model = loop_model(wncs, wncs.nodes["wncsca"].model_copy(update={"phase": "fixed"}))
     assert model.evaluate({}, {}).overshoot_pct["level"] == pytest.approx(os_bench, abs=1e-6)
     at_td = model.evaluate({}, {"level": PAPER_TAU_D_LEVEL}).overshoot_pct["level"]
     assert at_td == pytest.approx(os_delay, abs=1e-6)

@@ -11,12 +11,12 @@ import pytest
 from agents.update_period.analysis import CSTRRecycleCase
 from agents.update_period.delay import DelayedUpdates, find_h_range
 from controllers.qdc import QDCNetwork, closed_loop_matrices
+from core.errors import ConfigError
+from core.record import summarize
+from core.time import to_ticks, to_units
 from runtime.direct import simulate
-from runtime.errors import ConfigError
 from runtime.launcher import launch
-from runtime.record import summarize
 from runtime.scenario import load_scenario
-from runtime.time import to_ticks, to_units
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_column_mrac_bus import assert_traces_equal
 

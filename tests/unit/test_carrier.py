@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from core.errors import ConfigError
+from core.record import summarize
+from core.time import to_ticks
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, path_hops
 from runtime.direct import simulate
-from runtime.errors import ConfigError
-from runtime.record import summarize
 from runtime.scenario import load_scenario
-from runtime.time import to_ticks
 from tests.conftest import BENCHMARK, SCENARIOS, write_variant
 
 WSN = SCENARIOS / "jcstr_wsn.yaml"

@@ -11,12 +11,12 @@ import yaml
 from controllers.cascade import PIPCascade, PIPCascadeConfig
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from controllers.pi import PI, PIConfig
+from core.errors import ConfigError
+from core.record import summarize
+from core.time import to_units
 from plants.cascade_ct import CascadeCTParams, sampled
 from runtime.direct import simulate
-from runtime.errors import ConfigError
-from runtime.record import summarize
 from runtime.scenario import load_scenario, parse_scenario
-from runtime.time import to_units
 from tests.conftest import SCENARIOS, load_yaml, write_variant
 
 ROUTINE = SCENARIOS / "cascade_routine.yaml"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from bus_schemas import Done
-from runtime.clock import Pacer, RoundPlanner
-from runtime.errors import ProtocolError
+from core.errors import ProtocolError
+from kernel.clock import Pacer, RoundPlanner
 
 
 def done(node, rnd, published=None, next_time=None):

@@ -27,7 +27,7 @@ from bus_schemas import (
     codec,
     keys,
 )
-from runtime.errors import SchemaError
+from core.errors import SchemaError
 
 BODIES = [
     Sample(value=0.7, t_sampled=1_800_000),

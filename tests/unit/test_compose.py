@@ -6,7 +6,7 @@ from __future__ import annotations
 import yaml
 
 from runtime.cli import build_parser
-from runtime.nodes import node_class
+from runtime.nodes import check_node
 from runtime.scenario import load_scenario
 from tests.conftest import ROOT
 
@@ -33,4 +33,4 @@ def test_compose_services_match_the_scenario():
     scenario = load_scenario(ROOT / scenarios.pop())
     assert names == {"clock", *scenario.participants()}
     for name in names - {"clock"}:
-        node_class(scenario, name)  # every service has a node class to run
+        check_node(scenario, name)  # every service is a node of the scenario

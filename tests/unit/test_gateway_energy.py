@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from core.time import to_ticks
 from gateway.energy import EnergyConfig, EnergyMeter, projected_lifetime, traffic_per_second
 from gateway.paths import deliver
 from gateway.topology import NodeDown, Topology, TopologyConfig
-from runtime.time import to_ticks
 
 # Round numbers for hand computation: a 125-byte frame (119 + 6) at 1 Mb/s is 1 ms on air, a
 # 25-byte acknowledgement 0.2 ms, and the sender listens 0.3 ms before it.

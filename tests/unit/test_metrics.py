@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from runtime.metrics import step_metrics
+from core.metrics import step_metrics
 
 
 @pytest.mark.parametrize("zeta", [0.3, 0.5, 0.7])

@@ -15,9 +15,9 @@ import pytest
 from agents.monitor.config import MonitorConfig, SecondarySpec
 from agents.monitor.run_data import RunSeries, assess_series, feed_run_record
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from core.time import to_ticks
 from runtime.direct import simulate
 from runtime.scenario import Scenario, parse_scenario
-from runtime.time import to_ticks
 from tests.conftest import SCENARIOS, load_yaml
 
 LOOP, WINDOW, START = "temperature", 2000, 100.0

@@ -14,7 +14,7 @@ from agents.monitor.errors import DataError
 from agents.monitor.run_data import RunSeries, assess_series, resolve_column
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, codec, keys
 from bus_schemas.bodies import PlantState, Sample, Setpoint
-from runtime.errors import ConfigError, SchemaError
+from core.errors import ConfigError, SchemaError
 from runtime.scenario import parse_scenario
 from tests.conftest import SCENARIOS, load_yaml
 

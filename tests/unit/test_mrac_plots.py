@@ -18,9 +18,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 from controllers.law_plots import figures_of
 from controllers.mrac import compatibility_theta
 from controllers.mrac_plots import figures, series
-from runtime.direct import multi_loop_executions, simulate
+from core.time import to_units
+from runtime.direct import simulate
+from runtime.executions import multi_loop_executions
 from runtime.scenario import load_scenario
-from runtime.time import to_units
 from tests.conftest import BENCHMARK, SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -21,14 +21,15 @@ from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
 
 from controllers.mrac import MRAC, THESIS_A0, THESIS_B0, MRACConfig, replay
+from core.errors import ConfigError
+from core.time import to_ticks, to_units
 from plants import registry
 from plants.column import FITTED_PARAMS, Column, PerturbedReducedPlant, balanced_reduction
 from plants.column_plant import ColumnPlant
 from plants.perturbed_reduced import PerturbedReduced, PerturbedReducedParams
-from runtime.direct import multi_loop_executions, simulate
-from runtime.errors import ConfigError
+from runtime.direct import simulate
+from runtime.executions import multi_loop_executions
 from runtime.scenario import load_scenario
-from runtime.time import to_ticks, to_units
 from tests.conftest import ROOT, SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -17,15 +17,14 @@ from scipy.integrate import solve_ivp
 
 from agents.update_period.analysis import CSTRRecycleCase, build_lambda, find_h_max
 from bus_schemas import Estimate, Rates, keys
-from controllers.node import ControllerNode
+from controllers.behaviour import ControllerBehaviour
 from controllers.qdc import QDCNetwork, simulate_nonlinear
 from controllers.registry import build_multi_loop_law
+from core.errors import ConfigError
+from core.record import summarize
+from core.time import to_ticks
 from runtime.direct import simulate
-from runtime.errors import ConfigError
-from runtime.node import NodeContext
-from runtime.record import summarize
 from runtime.scenario import load_scenario
-from runtime.time import to_ticks
 from tests.conftest import SCENARIOS, write_variant
 
 QDC = SCENARIOS / "cstr_recycle_qdc.yaml"
@@ -203,7 +202,7 @@ def test_actuator_only_loops_record_their_moves():
 # -- run-time link periods (the controller node alone, no bus) -----------------------------------
 def test_link_period_assigned_at_run_time_reschedules_the_next_transmission():
     scenario = load_scenario(QDC)
-    node = ControllerNode(NodeContext("unit1", "r1", scenario, session=None))  # type: ignore[arg-type]
+    node = ControllerBehaviour("unit1", scenario)
     h = to_ticks(0.038806)
 
     def fire(t):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from runtime.errors import ConfigError
+from core.errors import ConfigError
 from runtime.scenario import load_scenario
 from tests.conftest import BENCHMARK, write_variant
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from core.record import loop_metrics
 from runtime.direct import simulate
-from runtime.record import loop_metrics
 from runtime.scenario import load_scenario
 from tests.conftest import BENCHMARK
 

@@ -14,12 +14,11 @@ from typing import Any
 import pytest
 
 from agents.wncsca.bounds import DelayBound, clear_cache, delay_bounds
-from agents.wncsca.coordinator import Coordinator
 from agents.wncsca.decision import ProposalError, control_path_delays, decide
-from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from core.time import to_ticks
+from runtime.direct import coordinator, loop_model
 from runtime.scenario import load_scenario
-from runtime.time import to_ticks
 from tests.conftest import SCENARIOS
 
 WNCS = SCENARIOS / "jcstr_wncs.yaml"
@@ -262,9 +261,9 @@ def fixed_cfg(wncs):
 
 def test_delay_bounds_are_checked_within_the_limit_and_violated_one_step_above(wncs, fixed_cfg):
     clear_cache()
-    bounds = delay_bounds(LoopModel(wncs, fixed_cfg))
+    bounds = delay_bounds(loop_model(wncs, fixed_cfg))
     assert set(bounds) == {"level", "temperature"}
-    fresh = LoopModel(wncs, fixed_cfg)
+    fresh = loop_model(wncs, fixed_cfg)
     res = fixed_cfg.delay_resolution
     for loop, bound in bounds.items():
         d = bound.tau_d_max
@@ -280,18 +279,18 @@ def test_delay_bounds_are_checked_within_the_limit_and_violated_one_step_above(w
 
 
 def test_delay_bounds_are_cached(wncs, fixed_cfg):
-    model = LoopModel(wncs, fixed_cfg)
+    model = loop_model(wncs, fixed_cfg)
     first = delay_bounds(model)
     sims = model.simulations
     assert delay_bounds(model) is first
     assert model.simulations == sims  # nothing simulated again
-    assert delay_bounds(LoopModel(wncs, fixed_cfg)) is first  # cached per plant model
+    assert delay_bounds(loop_model(wncs, fixed_cfg)) is first  # cached per plant model
     clear_cache()
     again = delay_bounds(model)
     assert again is not first
     assert {n: b.tau_d_max for n, b in again.items()} == {n: b.tau_d_max for n, b in first.items()}
     # a tighter limit is another cache entry, with smaller bounds
-    tight = delay_bounds(LoopModel(wncs, fixed_cfg.model_copy(update={"overshoot_limit": 20.0})))
+    tight = delay_bounds(loop_model(wncs, fixed_cfg.model_copy(update={"overshoot_limit": 20.0})))
     assert tight is not again
     for loop in again:
         assert tight[loop].tau_d_max < again[loop].tau_d_max
@@ -304,7 +303,7 @@ def test_delay_bounds_are_cached(wncs, fixed_cfg):
 
 @pytest.fixture(scope="module")
 def example(wncs, fixed_cfg):
-    model = LoopModel(wncs, fixed_cfg)
+    model = loop_model(wncs, fixed_cfg)
     return model, successive_approximation(model, EXAMPLE)
 
 
@@ -334,7 +333,7 @@ def test_example_is_feasible_and_within_the_limit(example, fixed_cfg):
 
 def test_example_periods_reevaluated_by_a_fresh_model(example, wncs, fixed_cfg):
     _, a = example
-    fresh = LoopModel(wncs, fixed_cfg).evaluate(a.periods, EXAMPLE)
+    fresh = loop_model(wncs, fixed_cfg).evaluate(a.periods, EXAMPLE)
     assert fresh.overshoot_pct == pytest.approx(a.overshoot_pct, abs=1e-9)
     assert all(v <= LIMIT for v in fresh.overshoot_pct.values())
 
@@ -344,7 +343,7 @@ def test_example_trace_doubles_then_halves(example, wncs, fixed_cfg):
     # interval, keeping the acceptable half, until an acceptable trial is within eps_OS
     _, a = example
     res, eps = fixed_cfg.resolution, fixed_cfg.os_tolerance
-    fresh = LoopModel(wncs, fixed_cfg)
+    fresh = loop_model(wncs, fixed_cfg)
     first = a.trace[0]
     assert (first.loop, first.step) == ("temperature", "start")
     assert first.period == pytest.approx(BENCHMARK["temperature"])  # tau_si: the benchmark
@@ -416,12 +415,12 @@ def test_example_kept_results_were_ok_and_the_verify_trial_is_ok(example, wncs, 
     assert (last.loop, last.step, last.period) == (None, "verify", None)
     assert last.ok
     assert last.periods == pytest.approx(a.periods)
-    fresh = LoopModel(wncs, fixed_cfg).evaluate(last.periods, EXAMPLE)
+    fresh = loop_model(wncs, fixed_cfg).evaluate(last.periods, EXAMPLE)
     assert all(v <= LIMIT for v in fresh.overshoot_pct.values())
 
 
 def test_a_delay_above_the_bound_is_infeasible(wncs, fixed_cfg):
-    model = LoopModel(wncs, fixed_cfg)
+    model = loop_model(wncs, fixed_cfg)
     a = successive_approximation(model, {"level": 0.4, "temperature": 0.10})
     assert a.feasible is False
     assert a.periods == pytest.approx(BENCHMARK)
@@ -451,10 +450,10 @@ def test_a_delay_above_the_bound_is_infeasible(wncs, fixed_cfg):
 def test_assigned_periods_never_exceed_the_limit(wncs, phase, level, temperature):
     cfg = wncs.nodes["wncsca"].model_copy(update={"phase": phase})
     delays = {"level": level, "temperature": temperature}
-    a = successive_approximation(LoopModel(wncs, cfg), delays)
+    a = successive_approximation(loop_model(wncs, cfg), delays)
     assert a.feasible, a.reason
     assert all(p >= cfg.resolution for p in a.periods.values())
-    check = LoopModel(wncs, cfg).evaluate(a.periods, delays).overshoot_pct
+    check = loop_model(wncs, cfg).evaluate(a.periods, delays).overshoot_pct
     for loop, value in check.items():
         assert value <= LIMIT, (loop, a.periods, value)
     assert check == pytest.approx(a.overshoot_pct, abs=1e-9)
@@ -486,7 +485,7 @@ def proposal(pid: Any = 0, level_hops: float = 0.17) -> dict[str, Any]:
 
 
 def test_rates_per_mode(wncs):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     assert c.mode == "startup"
     closed = {"level": True, "temperature": True}
     opened = {"level": False, "temperature": False}
@@ -511,7 +510,7 @@ def test_rates_per_mode(wncs):
 
 @pytest.mark.parametrize("body", [{"mode": "bogus"}, {"mode": None}, {}, "steady_state", None])
 def test_unknown_mode_is_refused(wncs, body):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     c.on_mode({"mode": "steady_state"})
     before = c.rates()
     d = c.on_mode(body)
@@ -538,7 +537,7 @@ def test_unknown_mode_is_refused(wncs, body):
     ],
 )
 def test_invalid_setpoint_is_refused(wncs, body):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     c.on_mode({"mode": "steady_state"})
     now = to_ticks(10.0)
     d, value, when = c.on_setpoint("level", body, now)
@@ -553,7 +552,7 @@ def test_invalid_setpoint_is_refused(wncs, body):
     [(to_ticks(16.0), to_ticks(16.0)), (to_ticks(9.0), to_ticks(15.0)), (None, to_ticks(15.0))],
 )
 def test_valid_setpoint_closes_the_loops_first(wncs, t_apply, expected):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     c.on_mode({"mode": "steady_state"})
     body = {"value": 0.72} if t_apply is None else {"value": 0.72, "t_apply": t_apply}
     d, value, when = c.on_setpoint("level", body, to_ticks(15.0))
@@ -570,7 +569,7 @@ def test_valid_setpoint_closes_the_loops_first(wncs, t_apply, expected):
 
 
 def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     neg = c.on_proposal("network", proposal(0))
     d = neg.decision
     assert d.verdict == "accept", d.reasons
@@ -582,7 +581,7 @@ def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
     assert assigned == neg.assignment.periods
     assert assigned != BENCHMARK
     # the control periods are within the limit, simulated afresh (worst phase, as configured)
-    check = LoopModel(wncs, c.config).evaluate(assigned, EXAMPLE).overshoot_pct
+    check = loop_model(wncs, c.config).evaluate(assigned, EXAMPLE).overshoot_pct
     assert all(v <= LIMIT for v in check.values()), check
     # longer periods, fewer samples: the network outlives its benchmark lifetime
     assert all(assigned[n] > BENCHMARK[n] for n in assigned)
@@ -609,7 +608,7 @@ def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
 
 
 def test_reject_before_any_acceptance_keeps_the_benchmark(wncs):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     neg = c.on_proposal("network", proposal(4, level_hops=0.30))
     assert neg.decision.verdict == "reject"
     assert neg.decision.offending == ("level",)
@@ -640,7 +639,7 @@ def test_reject_before_any_acceptance_keeps_the_benchmark(wncs):
     ],
 )
 def test_malformed_proposals_change_nothing(wncs, network, body, field):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     c.on_mode({"mode": "steady_state"})
     before = c.rates()
     neg = c.on_proposal(network, body)
@@ -678,7 +677,7 @@ def test_unorderable_or_oversized_entries_are_refused(case):
 
 @pytest.mark.parametrize("route", [5, ["s_level", 3, "gw"]])
 def test_a_malformed_route_does_not_crash_the_agent(wncs, route):
-    c = Coordinator(wncs)
+    c = coordinator(wncs)
     body = proposal(0)
     body["paths"]["level.sensor"]["route"] = route
     neg = c.on_proposal("network", body)

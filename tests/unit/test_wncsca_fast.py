@@ -23,6 +23,7 @@ from agents.wncsca.config import TestStep as Step
 from agents.wncsca.fast import LinearPredictor, _jacobians, energy_rate, fast_periods
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from runtime.direct import loop_model
 from runtime.scenario import Scenario, load_scenario
 from tests.conftest import SCENARIOS
 
@@ -37,7 +38,7 @@ GRID = [
 def worked_example(**overrides) -> LoopModel:
     """The agent's model of the worked example, its configuration changed by ``overrides``."""
     scenario = load_scenario(SCENARIOS / "jcstr_wncs.yaml")
-    return LoopModel(scenario, scenario.nodes["wncsca"].model_copy(update=overrides))
+    return loop_model(scenario, scenario.nodes["wncsca"].model_copy(update=overrides))
 
 
 def rel(a: float, b: float) -> float:
@@ -90,7 +91,7 @@ def _small_step_model(d_temperature: float) -> LoopModel:
         ],
     )
     config = scenario.nodes["wncsca"].model_copy(update={"test": test, "phases": 2})
-    return LoopModel(Scenario.model_validate(data), config)
+    return loop_model(Scenario.model_validate(data), config)
 
 
 def test_small_steps_agree_with_the_nonlinear_model():
@@ -237,7 +238,7 @@ def test_infeasible_delays_give_the_benchmark_periods():
 
 def test_non_pi_law_is_refused():
     scenario = load_scenario(SCENARIOS / "tank_sim.yaml")  # a feedback-linearising NL PI
-    model = LoopModel(scenario, WncscaConfig())
+    model = loop_model(scenario, WncscaConfig())
     with pytest.raises(ValueError, match="'nlpi'"):
         fast_periods(model, {})
 

@@ -14,6 +14,7 @@ from agents.update_period.delay import DelayedUpdates, find_h_range
 from agents.wncsca.config import LinksConfig, WncscaConfig
 from agents.wncsca.links import judge_links, link_groups
 from controllers.qdc import QDCNetwork, closed_loop_matrices
+from runtime.direct import coordinator as build_coordinator
 from runtime.scenario import load_scenario
 from tests.conftest import SCENARIOS
 
@@ -108,9 +109,7 @@ def _link_path(delay, hops=2):
 
 @pytest.fixture(scope="module")
 def coordinator():
-    from agents.wncsca.coordinator import Coordinator
-
-    return Coordinator(load_scenario(WNCS_QDC))
+    return build_coordinator(load_scenario(WNCS_QDC))
 
 
 def test_the_coordinator_builds_the_group_from_the_controllers_laws(coordinator):
@@ -173,14 +172,13 @@ def test_the_sampled_analysis_assigns_a_multiple_of_the_sampling_period(tmp_path
     """analysis: sampled: h = floor(margin x N_max) tau_s, N_max from find_h_max_sampled on the
     analysis' own CSTR case (built apart from the laws); a link delay is rounded up to samples."""
     from agents.update_period.sampled import SampledQDC, find_h_max_sampled
-    from agents.wncsca.coordinator import Coordinator
     from tests.conftest import write_variant
 
     def sampled(d):
         d["nodes"]["wncsca"]["links"] = {"analysis": "sampled", "margin": 0.9}
 
     path = write_variant(tmp_path, SCENARIOS / "cstr_recycle_qdc_agent.yaml", "s.yaml", sampled)
-    coord = Coordinator(load_scenario(path))
+    coord = build_coordinator(load_scenario(path))
     (v,) = coord.govern_links()
     tau = 0.0005  # the scenario's tau_s
     ref = SampledQDC.from_law_parts(CASE.plant, QDCNetwork(CASE.plant, CASE.gains), tau)

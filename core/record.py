@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from runtime.metrics import iae, step_metrics
-from runtime.time import to_units
+from core.metrics import iae, step_metrics
+from core.time import to_units
 
 __all__ = [
     "LoopRecord",
@@ -95,6 +95,7 @@ class RunRecord:
     configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, paths
     net_nodes: dict[str, Any] = field(default_factory=dict)  # WSN node -> energy at the end
     wncsca: dict[str, list] = field(default_factory=dict)  # proposals, decisions, rates, ...
+    monitor: dict[str, list] = field(default_factory=dict)  # loop -> the monitor's assessments
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -238,6 +239,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
         ],
         "dropped_nodes": dict(sorted(rec.dropped_nodes.items())),
         **({"wncsca": wncsca_summary(rec.wncsca)} if rec.wncsca else {}),
+        **({"monitor": rec.monitor} if rec.monitor else {}),
         "wall_s": rec.wall_s,
         "phases_s": rec.phases,
     }

@@ -11,85 +11,42 @@ from __future__ import annotations
 import logging
 import queue
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import (
-    Done,
-    InjectRequest,
-    ModeRequest,
-    NetworkEvent,
-    Setpoint,
-    Stop,
-    Tick,
-    codec,
-    keys,
-)
-from runtime.errors import NodeFault, ProtocolError, SchemaError
-from runtime.scenario import Scenario
-from runtime.time import TICKS_PER_UNIT, to_ticks, to_units
+from bus_schemas import Done, InjectRequest, Stop, Tick, codec, keys
+from bus_schemas.errors import SchemaError
+from core.errors import NodeFault, ProtocolError
+from core.rounds import RoundPlanner
+from core.time import TICKS_PER_UNIT, to_units
 
-__all__ = ["RoundPlanner", "Pacer", "ClockRunner"]
+__all__ = ["ClockSpec", "Interpreter", "RoundPlanner", "Pacer", "ClockRunner"]
+
+Interpreter = Callable[[InjectRequest], tuple[str, BaseModel]]
+"""Turns a validated external request into the message the clock stamps (run-relative key and
+body); raises ``ValueError`` (or :class:`SchemaError`) for a request the run cannot take."""
+
+
+def _no_injections(request: InjectRequest) -> tuple[str, BaseModel]:
+    raise ValueError("this run takes no external requests")
+
+
+@dataclass(frozen=True)
+class ClockSpec:
+    """What the clock needs to know of a run (computed once from the scenario)."""
+
+    participants: frozenset[str]
+    end: int  # ticks
+    time_unit: str
+    round_timeout_s: float
+    startup_timeout_s: float
+    max_microsteps: int
+    may_drop: frozenset[str] = frozenset()
 
 log = logging.getLogger(__name__)
-
-
-class RoundPlanner:
-    """Which round comes next.
-
-    A round that published anything is followed by a microstep at the same time; otherwise time
-    jumps to the earliest ``next_time`` any participant reported (next-event advance). The run
-    ends when that time is past ``end`` (ticks) or no participant has anything pending.
-    """
-
-    def __init__(self, participants: Iterable[str], end: int, *, max_microsteps: int) -> None:
-        self.participants = frozenset(participants)
-        self.end = end
-        self.max_microsteps = max_microsteps
-        self.round = 0
-        self.t = 0
-        self.expected: dict[str, int] = {}
-        self.microsteps = 0
-        self.finished = False
-
-    def tick(self) -> Tick:
-        return Tick(round=self.round, t=self.t, expected=dict(sorted(self.expected.items())))
-
-    def advance(self, dones: Mapping[str, Done]) -> None:
-        """Digest every participant's ``Done`` of the current round."""
-        missing = self.participants - set(dones)
-        if missing:
-            raise ProtocolError(f"round {self.round}: no Done from {sorted(missing)}")
-        published: dict[str, int] = {}
-        for done in dones.values():
-            if done.round != self.round:
-                raise ProtocolError(f"{done.node}: Done of round {done.round} in {self.round}")
-            for key, n in done.published.items():
-                published[key] = published.get(key, 0) + n
-        if published:
-            self.microsteps += 1
-            if self.microsteps > self.max_microsteps:
-                raise ProtocolError(
-                    f"round {self.round}: more than {self.max_microsteps} microsteps at "
-                    f"t = {to_units(self.t)} (a zero-delay cycle?)"
-                )
-        else:
-            pending = [d.next_time for d in dones.values() if d.next_time is not None]
-            nxt = min(pending) if pending else None
-            if nxt is None or nxt > self.end:
-                self.finished = True
-                return
-            if nxt <= self.t:
-                late = sorted(d.node for d in dones.values() if d.next_time == nxt)
-                raise ProtocolError(
-                    f"round {self.round}: {late} report next_time {nxt} <= {self.t}"
-                )
-            self.t = nxt
-            self.microsteps = 0
-        self.round += 1
-        self.expected = published
 
 
 class Pacer:
@@ -125,18 +82,18 @@ class ClockRunner:
         self,
         session: zenoh.Session,
         run_id: str,
-        scenario: Scenario,
+        spec: ClockSpec,
         *,
+        interpret: Interpreter = _no_injections,
         realtime: float | None = None,
     ) -> None:
         self.session = session
         self.run_id = run_id
-        self.scenario = scenario
-        self.participants = frozenset(scenario.participants())
+        self.spec = spec
+        self.interpret = interpret
+        self.participants = spec.participants
         self.planner = RoundPlanner(
-            self.participants,
-            to_ticks(scenario.end_time),
-            max_microsteps=scenario.clock.max_microsteps,
+            self.participants, spec.end, max_microsteps=spec.max_microsteps
         )
         self.pacer = Pacer(realtime) if realtime else None
         self._queue: queue.Queue[tuple[str, str, bytes | zenoh.SampleKind]] = queue.Queue()
@@ -191,31 +148,9 @@ class ClockRunner:
         """Validate an external request and keep it for the next round (bad ones are logged):
         a network event for its gateway (``events/<network>``), a mode or a set-point request
         as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
-        from agents.wncsca.config import MODES
-        from gateway.topology import parse_event
-
         try:
             env = codec.decode_envelope(payload)
-            request = codec.decode_body(env, InjectRequest)
-            if request.mode is not None:
-                if self.scenario.agent_node() is None or request.mode not in MODES:
-                    raise SchemaError(f"mode {request.mode!r}: needs an agent and one of {MODES}")
-                rel, body = keys.ops_mode(), ModeRequest(mode=request.mode)
-            elif request.setpoint is not None:
-                loop = request.setpoint.get("loop")
-                if loop not in self.scenario.loops:
-                    raise SchemaError(f"setpoint: unknown loop {loop!r}")
-                rel = keys.setpoint(loop)
-                body = Setpoint(value=request.setpoint.get("value"))
-            else:
-                gateways = sorted(n for n, c in self.scenario.nodes.items() if c.kind == "gateway")
-                network = request.network or (gateways[0] if len(gateways) == 1 else None)
-                if network not in gateways:
-                    raise SchemaError(
-                        f"network {request.network!r} is not one gateway of {gateways}"
-                    )
-                parse_event(request.event)
-                rel, body = keys.network_events(network), NetworkEvent(event=request.event)
+            rel, body = self.interpret(codec.decode_body(env, InjectRequest))
         except (SchemaError, ValueError) as err:
             log.warning("clock: dropping injected request: %s", err)
             return
@@ -241,9 +176,9 @@ class ClockRunner:
         self._alive.discard(name)
         if name not in self.participants or self.planner.finished:
             return
-        unit = self.scenario.time_unit
+        unit = self.spec.time_unit
         where = f"round {self.planner.round} (t = {to_units(self.planner.t):.6f} {unit})"
-        if name in self.scenario.clock.may_drop:
+        if name in self.spec.may_drop:
             log.warning("node %r left during %s; dropped, the run carries on", name, where)
             self.participants = self.participants - {name}
             self.planner.participants = self.participants
@@ -275,7 +210,7 @@ class ClockRunner:
                 log.error("%s", err)
                 self._publish(keys.stop(), self._stop(ok=False, reason=str(err)))
                 code = 3
-            self._wait_for_exit(timeout=self.scenario.clock.round_timeout_s)
+            self._wait_for_exit(timeout=self.spec.round_timeout_s)
             return code
         finally:
             for s in subs:
@@ -303,14 +238,14 @@ class ClockRunner:
             return None
 
     def _wait_for_participants(self) -> None:
-        deadline = time.monotonic() + self.scenario.clock.startup_timeout_s
+        deadline = time.monotonic() + self.spec.startup_timeout_s
         while not self.participants <= self._alive:
             item = self._next(deadline - time.monotonic())
             if item is None:
                 missing = sorted(self.participants - self._alive)
                 raise NodeFault(
                     f"nodes {missing} did not come alive within "
-                    f"{self.scenario.clock.startup_timeout_s} s"
+                    f"{self.spec.startup_timeout_s} s"
                 )
             if item[0] == "cancel":
                 raise NodeFault(item[1])
@@ -322,7 +257,7 @@ class ClockRunner:
             self.pacer.start = time.monotonic()
 
     def _rounds(self) -> None:
-        timeout = self.scenario.clock.round_timeout_s
+        timeout = self.spec.round_timeout_s
         planner = self.planner
         while True:
             tick = self._stamp_injections(planner.tick())
@@ -335,7 +270,7 @@ class ClockRunner:
                     silent = sorted(self.participants - set(dones))
                     raise NodeFault(
                         f"node(s) {silent} did not answer round {tick.round} "
-                        f"(t = {to_units(tick.t):.6f} {self.scenario.time_unit}) within {timeout} s"
+                        f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
                     )
                 kind, key, payload = item
                 if kind == "cancel":

@@ -1,10 +1,13 @@
 """Exception hierarchy of the platform.
 
 Each subclass also inherits the builtin it refines, so callers may catch either
-(`ConfigError` is a `ValueError`, `NodeTimeout` a `TimeoutError`).
+(`ConfigError` is a `ValueError`, `NodeTimeout` a `TimeoutError`). `SchemaError` is the bus
+contract's own (:mod:`bus_schemas.errors`, a `ValueError`), re-exported here.
 """
 
 from __future__ import annotations
+
+from bus_schemas.errors import SchemaError
 
 __all__ = [
     "WncsError",
@@ -22,10 +25,6 @@ class WncsError(Exception):
 
 class ConfigError(WncsError, ValueError):
     """A scenario or configuration file is invalid; the message names the file and field."""
-
-
-class SchemaError(WncsError, ValueError):
-    """A bus message does not decode or does not validate against its schema."""
 
 
 class ProtocolError(WncsError, RuntimeError):

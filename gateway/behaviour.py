@@ -39,16 +39,17 @@ from bus_schemas import (
     keys,
 )
 from bus_schemas.envelope import RawEnvelope
+from core.behaviour import Behaviour
+from core.time import to_ticks, to_units
 from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks, to_units
 
-__all__ = ["NetworkNode"]
+__all__ = ["NetworkBehaviour"]
 
 
-class NetworkNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class NetworkBehaviour(Behaviour):
+    def __init__(self, name: str, scenario: Any) -> None:
+        super().__init__(name)
+        self.scenario = scenario
         self.carrier = PathCarrier(self.scenario, self.name)
         self.governed = self.scenario.agent_node() is not None
         self._proposals = 0

@@ -51,19 +51,21 @@ the law refuses (``ValueError``, e.g. the wrong length) is dropped and counted a
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from bus_schemas import Estimate, Move, Rates, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
 from controllers.registry import build_law, build_multi_loop_law, uses_feedforward
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks, to_units
+from core.behaviour import Behaviour
+from core.time import to_ticks, to_units
 
-__all__ = ["ControllerNode"]
+__all__ = ["ControllerBehaviour"]
 
 
-class ControllerNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class ControllerBehaviour(Behaviour):
+    def __init__(self, name: str, scenario: Any) -> None:
+        super().__init__(name)
+        self.scenario = scenario
         cfg = self.scenario.nodes[self.name]
         self.loops = cfg.loop_names
         self.multi = cfg.loops is not None
@@ -155,7 +157,7 @@ class ControllerNode(Node):
             try:
                 self.law.receive(to_units(self.now), link, list(msg.values))
             except ValueError as err:
-                self._reject(self.current_key, f"{env.src}#{env.seq}: {err}")
+                self.reject(self.current_key, f"{env.src}#{env.seq}: {err}")
 
         return handle
 

@@ -8,14 +8,28 @@ connects to an explicit endpoint, by default a router on the loopback interface.
 from __future__ import annotations
 
 import json
+import threading
 from typing import Literal
 
 import zenoh
 from pydantic import BaseModel, ConfigDict
 
-from runtime.errors import ConfigError
+from bus_schemas import codec
+from core.errors import ConfigError
 
-__all__ = ["BusConfig", "DEFAULT_LISTEN", "zenoh_config", "open_router", "open_client"]
+__all__ = [
+    "BusConfig",
+    "DEFAULT_LISTEN",
+    "Session",
+    "zenoh_config",
+    "open_router",
+    "open_client",
+    "is_put",
+    "put_when_heard",
+]
+
+Session = zenoh.Session
+"""A zenoh session: layers above the kernel name the type through here, never import zenoh."""
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 """Loopback, port chosen by the OS (read back from the router's admin space)."""
@@ -79,3 +93,34 @@ def open_client(connect: str) -> zenoh.Session:
     """Open a client session connected to the router at ``connect``."""
     _init_log()
     return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))
+
+
+def is_put(sample: zenoh.Sample) -> bool:
+    """Whether a sample (a liveliness one included) announces a value rather than a deletion."""
+    return bool(sample.kind == zenoh.SampleKind.PUT)
+
+
+def put_when_heard(connect: str, key: str, payload: bytes, *, timeout: float) -> bool:
+    """Publish ``payload`` once on ``key`` from a new client of the router at ``connect``, as
+    soon as a subscriber matches; ``False`` (nothing sent) if none does within ``timeout`` s."""
+    session = open_client(connect)
+    try:
+        publisher = session.declare_publisher(
+            key,
+            encoding=zenoh.Encoding(codec.ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
+        matched = threading.Event()
+        listener = publisher.declare_matching_listener(
+            lambda status: matched.set() if status.matching else None
+        )
+        try:
+            if not publisher.matching_status.matching and not matched.wait(timeout):
+                return False
+            publisher.put(payload)
+            return True
+        finally:
+            listener.undeclare()
+            publisher.undeclare()
+    finally:
+        session.close()

@@ -21,16 +21,17 @@ import numpy as np
 
 from bus_schemas import Move, PlantState, Sample, SamplingPeriod, keys
 from bus_schemas.envelope import RawEnvelope
+from core.behaviour import Behaviour
+from core.time import to_ticks, to_units
 from plants.integrate import integrator_of
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks, to_units
 
-__all__ = ["PlantNode"]
+__all__ = ["PlantBehaviour"]
 
 
-class PlantNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class PlantBehaviour(Behaviour):
+    def __init__(self, name: str, scenario: Any) -> None:
+        super().__init__(name)
+        self.scenario = scenario
         cfg = self.scenario.nodes[self.name]
         self.model = cfg.build()
         self.x = np.array([cfg.x0[s] for s in self.model.state_names], dtype=float)
@@ -96,7 +97,9 @@ class PlantNode(Node):
         rescheduled the sensor since: then this timer is stale and does nothing)."""
         index = self.model.output_names.index(signal)
         sigma = self.noise.get(signal, 0.0)
-        rng = self._rngs.setdefault(signal, self.scenario.sensor_rng(self.name, signal))
+        if signal not in self._rngs:
+            self._rngs[signal] = self.scenario.sensor_rng(self.name, signal)
+        rng = self._rngs[signal]
 
         def sample() -> None:
             if generation != self._generation[signal]:

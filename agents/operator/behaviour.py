@@ -9,17 +9,19 @@ moves, such as a draw-off flow) go straight to the plant's actuator key
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from bus_schemas import ModeRequest, Move, Setpoint, keys
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks
+from core.behaviour import Behaviour
+from core.time import to_ticks
 
-__all__ = ["OperatorNode"]
+__all__ = ["OperatorBehaviour"]
 
 
-class OperatorNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class OperatorBehaviour(Behaviour):
+    def __init__(self, name: str, scenario: Any) -> None:
+        super().__init__(name)
+        self.scenario = scenario
         for change in self.scenario.setpoints:
             t = to_ticks(change.t)
             if change.announce:

@@ -1,24 +1,21 @@
-"""The node base class: one event loop per node, driven by the clock's rounds (DESIGN section 3).
+"""The bus node: runs one behaviour on the bus, driven by the clock's rounds (DESIGN section 3).
 
-A concrete node declares in ``__init__`` what it listens to (:meth:`Node.subscribe`), its timers
-(:meth:`Node.every`, :meth:`Node.at`) and publishes with :meth:`Node.publish`; it never writes a
-loop. Each round the base class:
+What a node does lives in its :class:`~core.behaviour.Behaviour` (bus-free, shared with the
+direct engine); this class only moves its messages. Each round it:
 
-1. waits for ``Tick(r, t, expected)`` and collects, for every expected key matching one of its
-   subscriptions, that many messages stamped ``r - 1`` (zenoh gives no order across publishers;
-   the counts make delivery complete);
-2. calls :meth:`Node.advance_to` (plants integrate lazily in their handlers instead);
-3. dispatches the messages in ``(key, src, seq)`` order, never arrival order; a message that fails
-   to decode or validate is dropped, counted per key and logged once per key;
-4. calls :meth:`Node.after_dispatch`, fires the timers due at ``t``;
-5. publishes its outputs stamped ``r``; 6. answers ``Done(r, published, next_time)``.
+1. waits for ``Tick(r, t, expected)`` and collects, for every expected key matching one of the
+   behaviour's subscriptions, that many messages stamped ``r - 1`` (zenoh gives no order across
+   publishers; the counts make delivery complete);
+2. runs the behaviour's round (:meth:`~core.behaviour.Behaviour.run_round`) with them in
+   ``(key, src, seq)`` order, never arrival order; a message that fails to decode or validate is
+   dropped, counted per key and logged once per key;
+3. publishes the behaviour's outputs stamped ``r`` and answers ``Done(r, published, next_time)``.
 
 Zenoh callbacks only put raw samples on one queue; state is touched only by the loop thread.
 """
 
 from __future__ import annotations
 
-import heapq
 import logging
 import queue
 import time
@@ -32,42 +29,25 @@ from pydantic import BaseModel
 
 from bus_schemas import Done, Stop, Tick, codec, keys
 from bus_schemas.envelope import RawEnvelope
-from runtime.errors import NodeTimeout, ProtocolError, SchemaError
-from runtime.scenario import Scenario
-from runtime.time import to_units
+from bus_schemas.errors import SchemaError
+from core.behaviour import Behaviour
+from core.errors import NodeTimeout, ProtocolError
 
-__all__ = ["NodeContext", "Node"]
+__all__ = ["NodeContext", "BusNode"]
 
 log = logging.getLogger(__name__)
-
-Handler = Callable[[RawEnvelope, Any], None]
 
 
 @dataclass
 class NodeContext:
-    """Everything a node needs from its process: identity, scenario and bus session."""
+    """What a node needs from its process: identity, the run's participants and the bus."""
 
     name: str
     run_id: str
-    scenario: Scenario
     session: zenoh.Session
+    participants: frozenset[str]
+    round_timeout_s: float
     options: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass
-class _Subscription:
-    pattern: str  # run-relative
-    keyexpr: zenoh.KeyExpr  # absolute
-    body_type: type[BaseModel] | None  # None: the handler gets the raw body mapping
-    handler: Handler
-
-
-@dataclass(order=True)
-class _Timer:
-    t: int
-    order: int
-    callback: Callable[[], None] = field(compare=False)
-    period: int | None = field(compare=False, default=None)
 
 
 class _StopRequested(Exception):
@@ -76,78 +56,47 @@ class _StopRequested(Exception):
         self.key, self.payload = key, payload
 
 
-class _Adapter(logging.LoggerAdapter):
-    def process(self, msg: Any, kwargs: Any) -> tuple[Any, Any]:
-        node: Node = self.extra["node"]  # type: ignore[index]
-        return f"[{node.name} r={node.round} t={to_units(node.now):.6f}] {msg}", kwargs
+def _raw(env: RawEnvelope) -> Callable[[type[BaseModel] | None], Any]:
+    def body_as(body_type: type[BaseModel] | None) -> Any:
+        return env.body if body_type is None else codec.decode_body(env, body_type)
+
+    return body_as
 
 
-class Node:
-    """Base class of every bus participant."""
+class BusNode:
+    """Runs ``behaviour`` as bus participant ``ctx.name`` (see the module docstring)."""
 
-    def __init__(self, ctx: NodeContext) -> None:
+    def __init__(self, ctx: NodeContext, behaviour: Behaviour) -> None:
         self.ctx = ctx
+        self.behaviour = behaviour
         self.name = ctx.name
         self.run_id = ctx.run_id
-        self.scenario = ctx.scenario
         # sources whose data messages count: the participants, and the clock (external inputs)
-        self.participants = frozenset([*ctx.scenario.participants(), "clock"])
-        self.round = -1
-        self.now = 0
-        self.current_key = ""
-        self.log = _Adapter(log, {"node": self})
-        self.dropped_invalid: Counter[str] = Counter()
-        self._logged_drop: set[str] = set()
-        self._subs: list[_Subscription] = []
-        self._timers: list[_Timer] = []
-        self._timer_order = 0
-        self._out: list[tuple[str, BaseModel]] = []
+        self.participants = frozenset([*ctx.participants, "clock"])
+        self.log = behaviour.log
         self._seq = 0
         self._queue: queue.Queue[tuple[str, str, bytes]] = queue.Queue()
         self._pending: dict[int, list[tuple[str, RawEnvelope]]] = {}
         self._seen: set[tuple[str, int]] = set()
-        self._match_cache: dict[str, list[_Subscription]] = {}
         self._publishers: dict[str, zenoh.Publisher] = {}
-        self._timeout = ctx.scenario.clock.round_timeout_s
+        self._timeout = ctx.round_timeout_s
         self._backlog: list[tuple[str, str, bytes]] = []
+        self._declared: list[Any] = []
 
-    # -- declarations (call from __init__) -----------------------------------------------------
-    def subscribe(self, pattern: str, body_type: type[BaseModel] | None, handler: Handler) -> None:
-        """Receive messages on run-relative ``pattern``; ``handler(envelope, body)``."""
-        self._subs.append(
-            _Subscription(
-                pattern, zenoh.KeyExpr(keys.full(self.run_id, pattern)), body_type, handler
-            )
-        )
+    @property
+    def round(self) -> int:
+        return self.behaviour.round
 
-    def every(self, period: int, callback: Callable[[], None], *, start: int = 0) -> None:
-        """Call ``callback`` at ``start``, ``start + period``, ... (ticks)."""
-        if period <= 0:
-            raise ValueError(f"{self.name}: timer period must be positive, got {period}")
-        self._push_timer(start, callback, period)
-
-    def at(self, t: int, callback: Callable[[], None]) -> None:
-        """Call ``callback`` once at time ``t`` (ticks, not in the past)."""
-        if t < self.now:
-            raise ValueError(f"{self.name}: timer at {t} is before now ({self.now})")
-        self._push_timer(t, callback, None)
-
-    def publish(self, rel_key: str, body: BaseModel) -> None:
-        """Queue ``body`` on run-relative ``rel_key``; sent stamped with this round."""
-        self._out.append((rel_key, body))
-
-    # -- hooks -----------------------------------------------------------------------------------
-    def advance_to(self, t: int) -> None:
-        """Called at the start of every round, before messages are handled."""
-
-    def after_dispatch(self) -> None:
-        """Called every round after the messages are handled and before the timers."""
+    @property
+    def dropped_invalid(self) -> Counter[str]:
+        return self.behaviour.dropped_invalid
 
     def on_tick(self, tick: Tick) -> None:
         """Called with every tick before collection (the historian records it)."""
 
     def on_stop(self, stop: Stop) -> None:
         """Called once when the clock ends the run."""
+        self.behaviour.on_stop(stop.ok, stop.reason)
 
     # -- the loop --------------------------------------------------------------------------------
     def run(self) -> int:
@@ -158,7 +107,7 @@ class Node:
             session.declare_subscriber(f"{prefix}/clock/{leaf}", self._enqueue("control"))
             for leaf in ("tick", "stop")
         ]
-        for pattern in sorted({s.pattern for s in self._subs}):
+        for pattern in self.behaviour.patterns:
             declared.append(
                 session.declare_subscriber(keys.full(self.run_id, pattern), self._enqueue("data"))
             )
@@ -221,25 +170,26 @@ class Node:
     def _round_(self, tick: Tick) -> None:
         if tick.round != self.round + 1 and self.round >= 0:
             raise ProtocolError(f"{self.name}: tick {tick.round} after round {self.round}")
-        if tick.t < self.now:
-            raise ProtocolError(f"{self.name}: time went back from {self.now} to {tick.t}")
-        self.round, self.now = tick.round, tick.t
+        self.behaviour.begin_round(tick.round, tick.t)
         self.on_tick(tick)
         inbox = self._collect(tick)
-        self.advance_to(tick.t)
-        for rel, env in sorted(inbox, key=lambda m: (m[0], m[1].src, m[1].seq)):
-            self._dispatch(rel, env)
-        self.after_dispatch()
-        self._fire_timers(tick.t)
-        published = self._flush()
+        ordered = sorted(inbox, key=lambda m: (m[0], m[1].src, m[1].seq))
+        self.behaviour.advance_to(tick.t)
+        for rel, env in ordered:
+            self.behaviour.dispatch(rel, env, _raw(env))
+        outputs, next_time = self.behaviour.end_round()
+        counts: Counter[str] = Counter()
+        for rel, body in outputs:
+            self._put(rel, body)
+            counts[rel] += 1
         self._drain_nowait()
         self._put(
             keys.done(self.name),
             Done(
                 round=tick.round,
                 node=self.name,
-                published=published,
-                next_time=self._timers[0].t if self._timers else None,
+                published=dict(counts),
+                next_time=next_time,
                 dropped_invalid=dict(self.dropped_invalid),
             ),
         )
@@ -261,14 +211,6 @@ class Node:
     def _on_clock_liveliness(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.DELETE:
             self._queue.put(("clock_gone", "", b""))
-
-    def _matches(self, rel: str) -> list[_Subscription]:
-        hit = self._match_cache.get(rel)
-        if hit is None:
-            ke = zenoh.KeyExpr(keys.full(self.run_id, rel))
-            hit = [s for s in self._subs if s.keyexpr.intersects(ke)]
-            self._match_cache[rel] = hit
-        return hit
 
     def _accept(self, key: str, payload: bytes) -> None:
         """Check one raw data message and file it under its round (or drop it as invalid)."""
@@ -298,7 +240,9 @@ class Node:
 
     def _collect(self, tick: Tick) -> list[tuple[str, RawEnvelope]]:
         prev = tick.round - 1
-        need = {k: n for k, n in tick.expected.items() if n > 0 and self._matches(k)}
+        need = {
+            k: n for k, n in tick.expected.items() if n > 0 and self.behaviour.listens_to(k)
+        }
         self._collected = False
         deadline = time.monotonic() + self._timeout
         while True:
@@ -345,49 +289,7 @@ class Node:
                 self._backlog.append(item)
 
     def _reject(self, rel: str, reason: str) -> None:
-        self.dropped_invalid[rel] += 1
-        if rel not in self._logged_drop:
-            self._logged_drop.add(rel)
-            self.log.warning(
-                "dropping invalid message on %s: %s (logged once per key)", rel, reason
-            )
-
-    # -- dispatch, timers, output ----------------------------------------------------------------
-    def _dispatch(self, rel: str, env: RawEnvelope) -> None:
-        self.current_key = rel  # handlers may read the run-relative key they are called for
-        for sub in self._matches(rel):
-            if sub.body_type is None:
-                sub.handler(env, env.body)
-                continue
-            try:
-                body = codec.decode_body(env, sub.body_type)
-            except SchemaError as err:
-                self._reject(rel, f"{env.src}#{env.seq}: {err}")
-                continue
-            sub.handler(env, body)
-
-    def _push_timer(self, t: int, callback: Callable[[], None], period: int | None) -> None:
-        heapq.heappush(self._timers, _Timer(t, self._timer_order, callback, period))
-        self._timer_order += 1
-
-    def _fire_timers(self, t: int) -> None:
-        if self._timers and self._timers[0].t < t:
-            raise ProtocolError(
-                f"{self.name}: timer due at {self._timers[0].t} skipped (clock at {t})"
-            )
-        while self._timers and self._timers[0].t == t:
-            timer = heapq.heappop(self._timers)
-            timer.callback()
-            if timer.period is not None:
-                self._push_timer(t + timer.period, timer.callback, timer.period)
-
-    def _flush(self) -> dict[str, int]:
-        counts: Counter[str] = Counter()
-        for rel, body in self._out:
-            self._put(rel, body)
-            counts[rel] += 1
-        self._out.clear()
-        return dict(counts)
+        self.behaviour.reject(rel, reason)
 
     def _put(self, rel: str, body: BaseModel) -> None:
         pub = self._publishers.get(rel)
@@ -405,8 +307,9 @@ class Node:
             src=self.name,
             seq=self._seq,
             round=max(self.round, 0),
-            t=self.now,
+            t=self.behaviour.now,
             body=body,
         )
         self._seq += 1
         pub.put(payload)
+

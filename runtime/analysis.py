@@ -15,10 +15,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from agents.wncsca.bounds import delay_bounds
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import assign
 from agents.wncsca.decision import decide
-from agents.wncsca.model import LoopModel
+from agents.wncsca.plots import fig10
+from gateway.carrier import PathCarrier
+from runtime.direct import loop_model
 
 __all__ = ["analyze", "parse_delays"]
 
@@ -50,8 +53,6 @@ def parse_delays(text: str, loops: Any) -> dict[str, float]:
 
 def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
     """The paths as the scenario's networks would first propose them."""
-    from gateway.carrier import PathCarrier
-
     paths: dict[str, dict[str, Any]] = {}
     for name, node in sorted(scenario.nodes.items()):
         if node.kind == "gateway":
@@ -82,9 +83,7 @@ def analyze(
     if method is not None:
         config = config.model_copy(update={"method": method})
     t0 = time.perf_counter()
-    model = LoopModel(scenario, config)
-    from agents.wncsca.bounds import delay_bounds
-
+    model = loop_model(scenario, config)
     bounds = delay_bounds(model)
     t_bounds = time.perf_counter() - t0
     if delays is None:
@@ -117,8 +116,6 @@ def analyze(
             }
         )
         if out is not None:
-            from agents.wncsca.plots import fig10
-
             fig10(result, Path(out) / "search.png", limit=config.overshoot_limit)
     entry["decision_time_s"] = time.perf_counter() - t1
     summary = {

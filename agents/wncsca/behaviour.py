@@ -20,16 +20,16 @@ from agents.wncsca.coordinator import Coordinator, Negotiation
 from bus_schemas import Decision, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
 from bus_schemas.envelope import RawEnvelope
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks
+from core.behaviour import Behaviour
+from core.time import to_ticks
 
-__all__ = ["WncscaNode"]
+__all__ = ["WncscaBehaviour"]
 
 
-class WncscaNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
-        self.core = Coordinator(self.scenario)
+class WncscaBehaviour(Behaviour):
+    def __init__(self, name: str, core: Coordinator) -> None:
+        super().__init__(name)
+        self.core = core
         t0 = time.perf_counter()
         bounds = self.core.bounds  # once, before the run: III.E step 2's tau_d-max
         self.log.info(

@@ -21,11 +21,11 @@ from typing import Any
 
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, keys
 from bus_schemas.envelope import RawEnvelope
-from runtime.errors import ConfigError
-from runtime.node import Node, NodeContext
-from runtime.time import to_ticks
+from core.behaviour import Behaviour
+from core.errors import ConfigError
+from core.time import to_ticks
 
-__all__ = ["MonitorNode", "assessment_body", "run_assessment"]
+__all__ = ["MonitorBehaviour", "assessment_body", "run_assessment"]
 
 
 def _num(v: Any) -> float | None:
@@ -123,9 +123,10 @@ def run_assessment(
     return {**result.to_dict(), "window": info.to_dict(until, time_unit)}
 
 
-class MonitorNode(Node):
-    def __init__(self, ctx: NodeContext) -> None:
-        super().__init__(ctx)
+class MonitorBehaviour(Behaviour):
+    def __init__(self, name: str, scenario: Any) -> None:
+        super().__init__(name)
+        self.scenario = scenario
         from agents.monitor.run_data import RunSeries
 
         cfg = self.scenario.nodes[self.name]

@@ -1,0 +1,234 @@
+"""The bus-free half of every node: declarations, timers, ordered dispatch, outputs (DESIGN §3).
+
+A :class:`Behaviour` is what one node kind does at time ``t``. It declares in ``__init__`` what it
+listens to (:meth:`Behaviour.subscribe`) and its timers (:meth:`Behaviour.every`,
+:meth:`Behaviour.at`), and publishes with :meth:`Behaviour.publish`; it never sees the bus and
+never writes a loop. An engine drives it round by round, always in this order::
+
+    behaviour.begin_round(round, t)              # checks the round, sets ``now``
+    behaviour.advance_to(t)                      # hook: continuous state to t
+    for key, env, body_as in inbox:              # sorted by (key, src, seq), never arrival order
+        behaviour.dispatch(key, env, body_as)    # every matching handler; bad input rejected
+    outputs, next_time = behaviour.end_round()   # after_dispatch, timers due at t, outputs
+
+:class:`kernel.node.BusNode` does it with the messages it collected from zenoh (bodies decoded
+from msgpack); :class:`runtime.direct.DirectEngine` with the messages of the previous round passed
+in memory. Both engines therefore run the very same code in the very same order, and their traces
+agree bit for bit.
+
+A message that fails to validate against a handler's schema, or that a handler refuses
+(:meth:`Behaviour.reject`), is dropped, counted per key and logged once per key: a node never
+dies of bad input.
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from pydantic import BaseModel
+
+from bus_schemas import keys
+from bus_schemas.errors import SchemaError
+from core.errors import ProtocolError
+from core.time import to_units
+
+__all__ = ["Behaviour", "Incoming", "BodyAs", "Handler", "Output"]
+
+log = logging.getLogger(__name__)
+
+
+class Incoming(Protocol):
+    """What a handler learns of a message besides its body (a bus envelope has all of it)."""
+
+    @property
+    def src(self) -> str: ...
+
+    @property
+    def seq(self) -> int: ...
+
+    @property
+    def round(self) -> int: ...
+
+    @property
+    def t(self) -> int: ...
+
+
+Handler = Callable[[Any, Any], None]
+"""``handler(envelope, body)``: the body as the subscription's schema, or the raw mapping."""
+
+BodyAs = Callable[[type[BaseModel] | None], Any]
+"""How an engine hands over a message's body: validated as a schema, or raw (``None``); raises
+:class:`~bus_schemas.errors.SchemaError` when the body does not fit the schema."""
+
+Output = tuple[str, BaseModel]
+"""One published message: run-relative key and body."""
+
+
+@dataclass
+class _Subscription:
+    pattern: str  # run-relative
+    body_type: type[BaseModel] | None  # None: the handler gets the raw body mapping
+    handler: Handler
+
+
+@dataclass(order=True)
+class _Timer:
+    t: int
+    order: int
+    callback: Callable[[], None] = field(compare=False)
+    period: int | None = field(compare=False, default=None)
+
+
+class _Adapter(logging.LoggerAdapter):  # type: ignore[type-arg]
+    def process(self, msg: Any, kwargs: Any) -> tuple[Any, Any]:
+        node: Behaviour = self.extra["node"]  # type: ignore[index]
+        return f"[{node.name} r={node.round} t={to_units(node.now):.6f}] {msg}", kwargs
+
+
+class Behaviour:
+    """Base class of what a node kind does, run by every engine (see the module docstring)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.round = -1
+        self.now = 0
+        self.current_key = ""
+        self.log = _Adapter(log, {"node": self})
+        self.dropped_invalid: Counter[str] = Counter()
+        self._logged_drop: set[str] = set()
+        self._subs: list[_Subscription] = []
+        self._timers: list[_Timer] = []
+        self._timer_order = 0
+        self._out: list[Output] = []
+        self._match_cache: dict[str, list[_Subscription]] = {}
+
+    # -- declarations (call from __init__) -----------------------------------------------------
+    def subscribe(self, pattern: str, body_type: type[BaseModel] | None, handler: Handler) -> None:
+        """Receive messages on run-relative ``pattern``; ``handler(envelope, body)``."""
+        self._subs.append(_Subscription(pattern, body_type, handler))
+        self._match_cache.clear()
+
+    def every(self, period: int, callback: Callable[[], None], *, start: int = 0) -> None:
+        """Call ``callback`` at ``start``, ``start + period``, ... (ticks)."""
+        if period <= 0:
+            raise ValueError(f"{self.name}: timer period must be positive, got {period}")
+        self._push_timer(start, callback, period)
+
+    def at(self, t: int, callback: Callable[[], None]) -> None:
+        """Call ``callback`` once at time ``t`` (ticks, not in the past)."""
+        if t < self.now:
+            raise ValueError(f"{self.name}: timer at {t} is before now ({self.now})")
+        self._push_timer(t, callback, None)
+
+    def publish(self, rel_key: str, body: BaseModel) -> None:
+        """Queue ``body`` on run-relative ``rel_key``; sent stamped with this round."""
+        self._out.append((rel_key, body))
+
+    def reject(self, rel: str, reason: str) -> None:
+        """Drop an invalid message on ``rel``: counted per key, logged once per key."""
+        self.dropped_invalid[rel] += 1
+        if rel not in self._logged_drop:
+            self._logged_drop.add(rel)
+            self.log.warning(
+                "dropping invalid message on %s: %s (logged once per key)", rel, reason
+            )
+
+    # -- hooks -----------------------------------------------------------------------------------
+    def advance_to(self, t: int) -> None:
+        """Called at the start of every round, before messages are handled."""
+
+    def after_dispatch(self) -> None:
+        """Called every round after the messages are handled and before the timers."""
+
+    def on_stop(self, ok: bool, reason: str) -> None:
+        """Called once when the run ends."""
+
+    # -- what the engines call -------------------------------------------------------------------
+    @property
+    def patterns(self) -> list[str]:
+        """The run-relative key expressions this behaviour listens to, sorted, once each."""
+        return sorted({s.pattern for s in self._subs})
+
+    @property
+    def next_time(self) -> int | None:
+        """The time of the earliest pending timer (ticks), or ``None``."""
+        return self._timers[0].t if self._timers else None
+
+    def idle_at(self, t: int) -> bool:
+        """Whether a round at ``t`` with no message for this behaviour would change nothing: no
+        timer is due then. The hooks (:meth:`advance_to`, :meth:`after_dispatch`) must do
+        nothing in such a round — which is what lets the direct engine skip it (sparse rounds,
+        DESIGN section 3)."""
+        return not self._timers or self._timers[0].t != t
+
+    def listens_to(self, rel: str) -> bool:
+        """Whether a message on concrete run-relative key ``rel`` reaches a handler."""
+        return bool(self._matches(rel))
+
+    def begin_round(self, round_: int, t: int) -> None:
+        """Enter round ``round_`` at time ``t`` (ticks); rounds only go on, time never goes
+        back. An engine may leave out the rounds in which a behaviour has nothing to do (see
+        :meth:`idle_at`)."""
+        if round_ <= self.round:
+            raise ProtocolError(f"{self.name}: tick {round_} after round {self.round}")
+        if t < self.now:
+            raise ProtocolError(f"{self.name}: time went back from {self.now} to {t}")
+        self.round, self.now = round_, t
+
+    def dispatch(self, rel: str, env: Incoming, body_as: BodyAs) -> None:
+        """Hand one message to every handler subscribed to ``rel``."""
+        self.current_key = rel  # handlers may read the run-relative key they are called for
+        for sub in self._matches(rel):
+            try:
+                body = body_as(sub.body_type)
+            except SchemaError as err:
+                self.reject(rel, f"{env.src}#{env.seq}: {err}")
+                continue
+            sub.handler(env, body)
+
+    def end_round(self) -> tuple[list[Output], int | None]:
+        """Finish the round: :meth:`after_dispatch`, the timers due now, then the outputs (in
+        the order published) and the time of the next timer."""
+        self.after_dispatch()
+        self._fire_timers(self.now)
+        out, self._out = self._out, []
+        return out, self.next_time
+
+    def run_round(
+        self, round_: int, t: int, inbox: Sequence[tuple[str, Incoming, BodyAs]]
+    ) -> tuple[list[Output], int | None]:
+        """One whole round: :meth:`begin_round`, :meth:`advance_to`, :meth:`dispatch` of
+        ``inbox`` (already in ``(key, src, seq)`` order), :meth:`end_round`."""
+        self.begin_round(round_, t)
+        self.advance_to(t)
+        for rel, env, body_as in inbox:
+            self.dispatch(rel, env, body_as)
+        return self.end_round()
+
+    # -- internals -------------------------------------------------------------------------------
+    def _matches(self, rel: str) -> list[_Subscription]:
+        hit = self._match_cache.get(rel)
+        if hit is None:
+            hit = [s for s in self._subs if keys.intersects(s.pattern, rel)]
+            self._match_cache[rel] = hit
+        return hit
+
+    def _push_timer(self, t: int, callback: Callable[[], None], period: int | None) -> None:
+        heapq.heappush(self._timers, _Timer(t, self._timer_order, callback, period))
+        self._timer_order += 1
+
+    def _fire_timers(self, t: int) -> None:
+        if self._timers and self._timers[0].t < t:
+            raise ProtocolError(
+                f"{self.name}: timer due at {self._timers[0].t} skipped (clock at {t})"
+            )
+        while self._timers and self._timers[0].t == t:
+            timer = heapq.heappop(self._timers)
+            timer.callback()
+            if timer.period is not None:
+                self._push_timer(t + timer.period, timer.callback, timer.period)

@@ -1,0 +1,93 @@
+"""Which round comes next: the clock's pure logic, shared by the bus clock and the direct engine.
+
+DESIGN section 3: a round that published anything is followed by a microstep at the same time;
+otherwise time jumps to the earliest ``next_time`` any participant reported (next-event advance).
+The run ends when that time is past ``end`` (ticks) or no participant has anything pending.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Protocol
+
+from bus_schemas import Tick
+from core.errors import ProtocolError
+from core.time import to_units
+
+__all__ = ["RoundPlanner", "RoundReport"]
+
+
+class RoundReport(Protocol):
+    """What the planner reads of a participant's answer to a round (a bus ``Done`` has it)."""
+
+    @property
+    def round(self) -> int: ...
+
+    @property
+    def node(self) -> str: ...
+
+    @property
+    def published(self) -> Mapping[str, int]: ...
+
+    @property
+    def next_time(self) -> int | None: ...
+
+
+class RoundPlanner:
+    """Which round comes next (see the module docstring)."""
+
+    def __init__(self, participants: Iterable[str], end: int, *, max_microsteps: int) -> None:
+        self.participants = frozenset(participants)
+        self.end = end
+        self.max_microsteps = max_microsteps
+        self.round = 0
+        self.t = 0
+        self.expected: dict[str, int] = {}
+        self.microsteps = 0
+        self.finished = False
+
+    def tick(self) -> Tick:
+        """The current round as the clock announces it."""
+        return Tick(round=self.round, t=self.t, expected=dict(sorted(self.expected.items())))
+
+    def advance(self, dones: Mapping[str, RoundReport]) -> None:
+        """Digest every participant's answer to the current round."""
+        missing = self.participants - set(dones)
+        if missing:
+            raise ProtocolError(f"round {self.round}: no Done from {sorted(missing)}")
+        published: dict[str, int] = {}
+        for done in dones.values():
+            if done.round != self.round:
+                raise ProtocolError(f"{done.node}: Done of round {done.round} in {self.round}")
+            for key, n in done.published.items():
+                published[key] = published.get(key, 0) + n
+        self.advance_with(published, {d.node: d.next_time for d in dones.values()})
+
+    def advance_with(
+        self, published: dict[str, int], next_times: Mapping[str, int | None]
+    ) -> None:
+        """Move on, given the round's published counts per key and each participant's next
+        timer (``None``: none): a microstep if anything was published, else next-event
+        advance."""
+        if published:
+            self.microsteps += 1
+            if self.microsteps > self.max_microsteps:
+                raise ProtocolError(
+                    f"round {self.round}: more than {self.max_microsteps} microsteps at "
+                    f"t = {to_units(self.t)} (a zero-delay cycle?)"
+                )
+        else:
+            pending = [t for t in next_times.values() if t is not None]
+            nxt = min(pending) if pending else None
+            if nxt is None or nxt > self.end:
+                self.finished = True
+                return
+            if nxt <= self.t:
+                late = sorted(n for n, t in next_times.items() if t == nxt)
+                raise ProtocolError(
+                    f"round {self.round}: {late} report next_time {nxt} <= {self.t}"
+                )
+            self.t = nxt
+            self.microsteps = 0
+        self.round += 1
+        self.expected = published

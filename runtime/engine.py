@@ -1,0 +1,152 @@
+"""The direct engine's round loop: behaviours run in one process, round by round, no bus.
+
+:class:`DirectEngine` runs the very behaviours the bus nodes run (:mod:`runtime.direct` builds
+them), through the clock's own round logic (:class:`~core.rounds.RoundPlanner`), in the same
+order as the bus engines (DESIGN section 3): in round ``r`` each participant, in name order, gets
+the messages published in round ``r - 1`` on the keys it listens to, sorted by
+``(key, src, seq)``, and its outputs are stamped ``r``; a participant with no message and no
+timer due sits the round out (:meth:`~core.behaviour.Behaviour.idle_at`).
+
+A message is handed over in memory: the body object as published when the subscription asks for
+its schema (a body is a frozen, validated model: what the bus would decode from msgpack), its
+msgpack mapping when the subscription takes raw bodies. So the traces, decisions and assignments
+are those of the ``threads`` and ``processes`` engines, bit for bit.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from bus_schemas import codec
+from bus_schemas.errors import SchemaError
+from core.behaviour import Behaviour
+from core.rounds import RoundPlanner
+
+__all__ = ["Message", "DirectEngine"]
+
+
+class _Fields(Mapping[str, Any]):
+    """A read-only mapping view of a body's fields."""
+
+    __slots__ = ("_body",)
+
+    def __init__(self, body: BaseModel) -> None:
+        self._body = body
+
+    def __getitem__(self, name: str) -> Any:
+        try:
+            return getattr(self._body, name)
+        except AttributeError:
+            raise KeyError(name) from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(type(self._body).model_fields)
+
+    def __len__(self) -> int:
+        return len(type(self._body).model_fields)
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    """One message passed in memory: what a bus envelope holds, with the body as published."""
+
+    key: str  # run-relative
+    src: str
+    seq: int
+    round: int
+    t: int
+    body: BaseModel
+
+    def mapping(self) -> dict[str, Any]:
+        """The body as a bus subscriber of raw bodies gets it (msgpack round trip)."""
+        return codec.unpack_mapping(codec.pack_body(self.body))
+
+    def fields(self) -> _Fields:
+        """The body's fields by name (no copy, no msgpack round trip: tuples stay tuples)."""
+        return _Fields(self.body)
+
+    def body_as(self, body_type: type[BaseModel] | None) -> Any:
+        """The body for a subscription of schema ``body_type`` (``None``: raw mapping)."""
+        if body_type is None:
+            return self.mapping()
+        if type(self.body) is body_type:
+            return self.body
+        try:
+            return body_type.model_validate(self.mapping())
+        except ValidationError as err:
+            raise SchemaError(f"bad {body_type.__name__} body: {err.errors()[0]['msg']}") from err
+
+
+class DirectEngine:
+    """Runs ``behaviours`` (participant name -> behaviour) to ``end`` (ticks) in memory.
+
+    ``on_round`` is called with each round's messages, already in ``(key, src, seq)`` order
+    (the order the historian records them in).
+    """
+
+    def __init__(
+        self,
+        behaviours: Mapping[str, Behaviour],
+        *,
+        end: int,
+        max_microsteps: int,
+        on_round: Callable[[list[Message]], None] | None = None,
+    ) -> None:
+        self.behaviours = dict(sorted(behaviours.items()))
+        self.planner = RoundPlanner(self.behaviours, end, max_microsteps=max_microsteps)
+        self.on_round = on_round
+        self._seq: Counter[str] = Counter()
+        self._routes: dict[str, tuple[str, ...]] = {}
+
+    def run(self) -> None:
+        """Run every round until the planner finishes, then tell each behaviour the run ended."""
+        planner = self.planner
+        behaviours = self.behaviours
+        next_times: dict[str, int | None] = {n: b.next_time for n, b in behaviours.items()}
+        inbox: list[Message] = []
+        while not planner.finished:
+            r, t = planner.round, planner.t
+            boxes: dict[str, list[tuple[str, Message, Any]]] = {}
+            for m in inbox:
+                for name in self._listeners(m.key):
+                    boxes.setdefault(name, []).append((m.key, m, m.body_as))
+            published: list[Message] = []
+            counts: dict[str, int] = {}
+            for name, behaviour in behaviours.items():
+                mine = boxes.get(name)
+                if mine is None and next_times[name] != t:
+                    continue  # nothing to do in this round (Behaviour.idle_at)
+                outputs, next_times[name] = behaviour.run_round(r, t, mine or ())
+                for key, body in outputs:
+                    published.append(Message(key, name, self._seq[name], r, t, body))
+                    self._seq[name] += 1
+                    counts[key] = counts.get(key, 0) + 1
+            published.sort(key=lambda m: (m.key, m.src, m.seq))
+            if self.on_round is not None and published:
+                self.on_round(published)
+            planner.advance_with(counts, next_times)
+            inbox = published
+        for behaviour in behaviours.values():
+            behaviour.on_stop(True, "")
+
+    def _listeners(self, key: str) -> tuple[str, ...]:
+        hit = self._routes.get(key)
+        if hit is None:
+            hit = tuple(n for n, b in self.behaviours.items() if b.listens_to(key))
+            self._routes[key] = hit
+        return hit
+
+    def dropped_invalid(self) -> dict[str, int]:
+        """Invalid input per key, as the clock merges it (each subscriber sees every message)."""
+        merged: dict[str, int] = {}
+        for behaviour in self.behaviours.values():
+            for key, n in behaviour.dropped_invalid.items():
+                merged[key] = max(merged.get(key, 0), n)
+        return dict(sorted(merged.items()))
+
+
