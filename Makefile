@@ -28,6 +28,7 @@ test-fast: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy --strict bus_schemas core kernel
 
 # Re-resolve every dependency to the newest versions pyproject.toml allows and pin them with
 # hashes. Run it after editing dependencies, or on purpose to take upgrades (then `make test`).

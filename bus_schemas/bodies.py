@@ -255,10 +255,10 @@ class Rates(BaseModel):
     overshoot_pct: dict[str, float | None] = Field(
         default_factory=dict, description="predicted worst-case overshoot at the control periods"
     )
-    assignment: dict | None = Field(
+    assignment: dict[str, Any] | None = Field(
         default=None, description="a new negotiation: delays, periods, search trace (time units)"
     )
-    energy: dict | None = Field(
+    energy: dict[str, Any] | None = Field(
         default=None, description="projected network lifetime, assigned vs benchmark periods"
     )
     link_periods: dict[str, int] = Field(
@@ -311,11 +311,11 @@ class InjectRequest(BaseModel):
     model_config = _FROZEN
 
     network: str | None = Field(default=None, description="gateway node; None: the only one")
-    event: dict | None = Field(
+    event: dict[str, Any] | None = Field(
         default=None, description="a topology event: {type: node_down, node: r1}, ..."
     )
     mode: str | None = Field(default=None, description="an operating mode, for the agent")
-    setpoint: dict | None = Field(
+    setpoint: dict[str, Any] | None = Field(
         default=None, description="{loop: name, value: number}, on ops/setpoint/<loop>"
     )
 
@@ -332,7 +332,7 @@ class NetworkEvent(BaseModel):
 
     model_config = _FROZEN
 
-    event: dict
+    event: dict[str, Any]
     source: Literal["injected"] = "injected"
 
 

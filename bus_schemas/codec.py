@@ -7,7 +7,7 @@ Every failure is a :class:`~bus_schemas.errors.SchemaError` saying what was wron
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import msgpack
 from pydantic import BaseModel, ValidationError
@@ -33,22 +33,29 @@ BodyT = TypeVar("BodyT", bound=BaseModel)
 
 def pack_body(body: BaseModel) -> bytes:
     """The msgpack bytes of a body alone (the historian stores bodies without envelopes)."""
-    return msgpack.packb(body.model_dump(mode="python"), use_bin_type=True)
+    return _packb(body.model_dump(mode="python"))
 
 
-def pack_mapping(body: dict) -> bytes:
+def pack_mapping(body: dict[str, Any]) -> bytes:
     """The msgpack bytes of an unvalidated body mapping (as the historian stores it)."""
-    return msgpack.packb(body, use_bin_type=True)
+    return _packb(body)
 
 
-def unpack_mapping(raw: bytes) -> dict:
+def unpack_mapping(raw: bytes) -> dict[str, Any]:
     """Inverse of :func:`pack_mapping`."""
-    return msgpack.unpackb(raw, raw=False)
+    obj = msgpack.unpackb(raw, raw=False)
+    if not isinstance(obj, dict):
+        raise SchemaError(f"body must be a map, got {type(obj).__name__}")
+    return obj
+
+
+def _packb(obj: Any) -> bytes:
+    return bytes(msgpack.packb(obj, use_bin_type=True))
 
 
 def encode(*, run: str, src: str, seq: int, round: int, t: int, body: BaseModel) -> bytes:
     """Encode one message; the body must already be a validated model."""
-    return msgpack.packb(
+    return _packb(
         {
             "v": SCHEMA_VERSION,
             "run": run,
@@ -57,8 +64,7 @@ def encode(*, run: str, src: str, seq: int, round: int, t: int, body: BaseModel)
             "round": round,
             "t": t,
             "body": body.model_dump(mode="python"),
-        },
-        use_bin_type=True,
+        }
     )
 
 
@@ -97,4 +103,5 @@ def decode(raw: bytes, body_type: type[BodyT]) -> Envelope[BodyT]:
     """Decode and validate a whole message."""
     env = decode_envelope(raw)
     body = decode_body(env, body_type)
-    return Envelope[body_type](**env.model_dump(exclude={"body"}), body=body)
+    envelope: Any = Envelope[body_type]  # type: ignore[valid-type]
+    return envelope(**env.model_dump(exclude={"body"}), body=body)  # type: ignore[no-any-return]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Generic, Literal, TypeVar
+from typing import Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -27,7 +27,7 @@ class _EnvelopeFields(BaseModel):
 class RawEnvelope(_EnvelopeFields):
     """An envelope whose body has not been validated yet (a plain mapping)."""
 
-    body: dict
+    body: dict[str, Any]
 
 
 class Envelope(_EnvelopeFields, Generic[BodyT]):

@@ -28,7 +28,7 @@ import logging
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from pydantic import BaseModel
 
@@ -86,7 +86,7 @@ class _Timer:
 
 class _Adapter(logging.LoggerAdapter):  # type: ignore[type-arg]
     def process(self, msg: Any, kwargs: Any) -> tuple[Any, Any]:
-        node: Behaviour = self.extra["node"]  # type: ignore[index]
+        node = cast("Behaviour", self.extra["node"])  # type: ignore[index]
         return f"[{node.name} r={node.round} t={to_units(node.now):.6f}] {msg}", kwargs
 
 

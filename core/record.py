@@ -94,8 +94,8 @@ class RunRecord:
     hops: dict[str, int] = field(default_factory=dict)  # loop -> sensor-path hops (0: wired)
     configurations: list[dict[str, Any]] = field(default_factory=list)  # t, event, source, paths
     net_nodes: dict[str, Any] = field(default_factory=dict)  # WSN node -> energy at the end
-    wncsca: dict[str, list] = field(default_factory=dict)  # proposals, decisions, rates, ...
-    monitor: dict[str, list] = field(default_factory=dict)  # loop -> the monitor's assessments
+    wncsca: dict[str, list[Any]] = field(default_factory=dict)  # proposals, decisions, ...
+    monitor: dict[str, list[Any]] = field(default_factory=dict)  # loop -> the monitor's assessments
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
 
@@ -149,10 +149,12 @@ def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:
         while j + 1 < len(changes) and changes[j + 1][0] <= tk:
             j += 1
         r[k] = changes[j][1]
+    overshoots = [v for s in steps if (v := s["overshoot_pct"]) is not None]
     settle = [s["settling_time"] for s in steps]
+    settled = [v for v in settle if v is not None]
     return {
-        "overshoot_pct": max((s["overshoot_pct"] for s in steps), default=None),
-        "settling_time": (None if not steps or any(v is None for v in settle) else max(settle)),
+        "overshoot_pct": max(overshoots, default=None),
+        "settling_time": None if not steps or len(settled) < len(settle) else max(settled),
         "iae": iae(t, y, r),
         "steps": steps,
     }
@@ -245,14 +247,14 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
     }
 
 
-def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
+def wncsca_summary(raw: dict[str, list[Any]]) -> dict[str, Any]:
     """The coordination agent's part of ``summary.json``: ``decisions`` (time, subject, proposal,
     verdict, reasons, delays, bounds), ``assignments`` (time, mode, period and closed state per
     loop, predicted overshoot, method, search trace when negotiated) and ``energy`` (projected
     network lifetime under the assigned periods against the benchmark periods, per negotiation).
     Times in time units; periods in time units; ``order`` is the message's place in the history
     (several happen at one instant, in microsteps)."""
-    timing = {}
+    timing: dict[Any, float] = {}
     for entry in raw.get("timing", []):
         timing.setdefault(entry["proposal"], entry["decision_s"])
     decisions = []
@@ -303,7 +305,8 @@ def wncsca_summary(raw: dict[str, list]) -> dict[str, Any]:
 def _proposal(p: dict[str, Any]) -> dict[str, Any]:
     """One proposal as the summary lists it; a malformed one (the agent refused it) is listed as
     it came, with what could be read."""
-    paths = p.get("paths") if isinstance(p.get("paths"), dict) else {}
+    raw_paths = p.get("paths")
+    paths: dict[str, Any] = raw_paths if isinstance(raw_paths, dict) else {}
     entries = {k: v for k, v in paths.items() if isinstance(v, dict)}
     return {
         "t": to_units(p["t"]),

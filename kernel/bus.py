@@ -115,7 +115,8 @@ def put_when_heard(connect: str, key: str, payload: bytes, *, timeout: float) ->
             lambda status: matched.set() if status.matching else None
         )
         try:
-            if not publisher.matching_status.matching and not matched.wait(timeout):
+            status = publisher.matching_status  # the stubs say bool; it is a MatchingStatus
+            if not status.matching and not matched.wait(timeout):  # type: ignore[attr-defined]
                 return False
             publisher.put(payload)
             return True

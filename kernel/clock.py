@@ -13,6 +13,7 @@ import queue
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import zenoh
 from pydantic import BaseModel
@@ -101,7 +102,7 @@ class ClockRunner:
         self._seq = 0
         self.dropped_invalid: dict[str, dict[str, int]] = {}
         self.error: str | None = None
-        self.dropped_nodes: list[dict[str, object]] = []
+        self.dropped_nodes: list[dict[str, Any]] = []
         self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
 
     # -- bus plumbing ----------------------------------------------------------------------------
@@ -323,6 +324,6 @@ class ClockRunner:
             if item[0] == "alive":
                 name, kind = item[1], item[2]
                 if kind == zenoh.SampleKind.DELETE:
-                    self._alive.discard(name)  # type: ignore[arg-type]
+                    self._alive.discard(name)
                 else:
-                    self._alive.add(name)  # type: ignore[arg-type]
+                    self._alive.add(name)
