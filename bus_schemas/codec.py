@@ -23,6 +23,7 @@ __all__ = [
     "unpack_mapping",
     "decode_envelope",
     "decode_body",
+    "validate_body",
     "decode",
 ]
 
@@ -93,8 +94,14 @@ def decode_envelope(raw: bytes) -> RawEnvelope:
 
 def decode_body(env: RawEnvelope, body_type: type[BodyT]) -> BodyT:
     """Validate the body of a checked envelope against ``body_type``."""
+    return validate_body(env.body, body_type)
+
+
+def validate_body(body: Any, body_type: type[BodyT]) -> BodyT:
+    """Validate a body mapping against ``body_type`` (what :func:`decode_body` does, for a body
+    that did not come in an envelope: the direct engine's messages)."""
     try:
-        return body_type.model_validate(env.body)
+        return body_type.model_validate(body)
     except ValidationError as err:
         raise SchemaError(f"bad {body_type.__name__} body: {_first_error(err)}") from err
 

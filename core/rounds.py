@@ -14,7 +14,7 @@ from bus_schemas import Tick
 from core.errors import ProtocolError
 from core.time import to_units
 
-__all__ = ["RoundPlanner", "RoundReport"]
+__all__ = ["RoundPlanner", "RoundReport", "merge_dropped"]
 
 
 class RoundReport(Protocol):
@@ -31,6 +31,16 @@ class RoundReport(Protocol):
 
     @property
     def next_time(self) -> int | None: ...
+
+
+def merge_dropped(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
+    """The run's invalid input per key from every participant's counts: the largest, since each
+    subscriber of a key sees every message on it."""
+    merged: dict[str, int] = {}
+    for per_key in counts:
+        for key, n in per_key.items():
+            merged[key] = max(merged.get(key, 0), n)
+    return dict(sorted(merged.items()))
 
 
 class RoundPlanner:

@@ -21,7 +21,7 @@ from pydantic import BaseModel
 from bus_schemas import Done, InjectRequest, Stop, Tick, codec, keys
 from bus_schemas.errors import SchemaError
 from core.errors import NodeFault, ProtocolError
-from core.rounds import RoundPlanner
+from core.rounds import RoundPlanner, merge_dropped
 from core.time import TICKS_PER_UNIT, to_units
 
 __all__ = ["ClockSpec", "Interpreter", "RoundPlanner", "Pacer", "ClockRunner"]
@@ -219,16 +219,12 @@ class ClockRunner:
             token.undeclare()
 
     def _stop(self, *, ok: bool, reason: str = "") -> Stop:
-        merged: dict[str, int] = {}
-        for counts in self.dropped_invalid.values():
-            for key, n in counts.items():
-                merged[key] = max(merged.get(key, 0), n)  # each subscriber sees every message
         return Stop(
             ok=ok,
             reason=reason,
             round=self.planner.round,
             t=self.planner.t,
-            dropped_invalid=dict(sorted(merged.items())),
+            dropped_invalid=merge_dropped(self.dropped_invalid.values()),
             dropped_nodes={d["node"]: d["round"] for d in self.dropped_nodes},
         )
 

@@ -1,6 +1,6 @@
-"""Runtime: virtual time, the node base class, the clock, launcher, historian and CLI.
+"""Runtime: the application layer (DESIGN section 2) — the scenario schema, the CLI, the
+launcher, the engines (:mod:`runtime.direct`, and the bus nodes of :mod:`runtime.nodes` on the
+kernel), the historian, records and reports, ``wncs inject`` and ``wncs analyze``.
 
-Only this package imports zenoh, and only in the modules that talk to the bus
-(`bus`, `node`, `clock`, `historian`, `launcher`); the package itself imports nothing heavy,
-so numerical cores may use `core.time` and `core.errors` freely.
+It imports every layer below it and no zenoh: the bus is the kernel's (:mod:`kernel`).
 """

@@ -20,12 +20,11 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel
 
 from bus_schemas import codec
-from bus_schemas.errors import SchemaError
 from core.behaviour import Behaviour
-from core.rounds import RoundPlanner
+from core.rounds import RoundPlanner, merge_dropped
 
 __all__ = ["Message", "DirectEngine"]
 
@@ -76,10 +75,7 @@ class Message:
             return self.mapping()
         if type(self.body) is body_type:
             return self.body
-        try:
-            return body_type.model_validate(self.mapping())
-        except ValidationError as err:
-            raise SchemaError(f"bad {body_type.__name__} body: {err.errors()[0]['msg']}") from err
+        return codec.validate_body(self.mapping(), body_type)
 
 
 class DirectEngine:
@@ -119,8 +115,8 @@ class DirectEngine:
             counts: dict[str, int] = {}
             for name, behaviour in behaviours.items():
                 mine = boxes.get(name)
-                if mine is None and next_times[name] != t:
-                    continue  # nothing to do in this round (Behaviour.idle_at)
+                if mine is None and behaviour.idle_at(t):
+                    continue  # nothing to do in this round
                 outputs, next_times[name] = behaviour.run_round(r, t, mine or ())
                 for key, body in outputs:
                     published.append(Message(key, name, self._seq[name], r, t, body))
@@ -143,10 +139,6 @@ class DirectEngine:
 
     def dropped_invalid(self) -> dict[str, int]:
         """Invalid input per key, as the clock merges it (each subscriber sees every message)."""
-        merged: dict[str, int] = {}
-        for behaviour in self.behaviours.values():
-            for key, n in behaviour.dropped_invalid.items():
-                merged[key] = max(merged.get(key, 0), n)
-        return dict(sorted(merged.items()))
+        return merge_dropped(b.dropped_invalid for b in self.behaviours.values())
 
 
