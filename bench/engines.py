@@ -4,7 +4,11 @@ Run phase (first round to the last) is reported apart from start-up (router, pro
 start, imports, until every participant is alive). Also the direct engine's throughput in runs per
 second, which is what the coordination agent pays per candidate sampling period.
 
-    .venv/bin/python bench/engines.py [--repeat N]
+With ``--against REV`` it first times the direct engine here and at git revision ``REV``
+(alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
+ratio: the before-and-after figure of a change to the engine.
+
+    .venv/bin/python bench/engines.py [--repeat N] [--against REV]
 """
 
 from __future__ import annotations
@@ -15,17 +19,50 @@ import tempfile
 import time
 from pathlib import Path
 
+from against import Comparison
+
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"
 
+# CPU time (not wall time: another process's load is not ours), fastest of 15 batches of 20
+DIRECT_MS = """
+import json, time
+from runtime.direct import simulate
+from runtime.scenario import load_scenario
+scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
+simulate(scenario)
+best = float("inf")
+for _ in range(15):
+    t0 = time.process_time()
+    for _ in range(20):
+        simulate(scenario)
+    best = min(best, (time.process_time() - t0) / 20)
+print(json.dumps(best * 1e3))
+"""
+
+
+def against(rev: str, rounds: int) -> None:
+    """The direct engine's time per benchmark run here and at ``rev``."""
+    with Comparison(rev) as cmp:
+        ours, theirs = cmp.run(DIRECT_MS, rounds=rounds)
+    print(f"direct engine, CPU ms per jcstr_benchmark run, {rounds} alternating processes:")
+    print("| tree | fastest | median |")
+    print("|---|---:|---:|")
+    for label, xs in (("this tree", ours), (rev, theirs)):
+        print(f"| {label} | {min(xs):.1f} | {statistics.median(xs):.1f} |")
+    print(f"this tree / {rev}: {min(ours) / min(theirs):.2f} (fastest against fastest)\n")
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--against", metavar="REV", help="also time the direct engine at REV")
     args = parser.parse_args()
+    if args.against:
+        against(args.against, rounds=5)
 
     scenario = load_scenario(SCENARIO)
     simulate(scenario)  # warm up imports and caches

@@ -13,6 +13,11 @@ paper's fixed phase, eps_OS 0.2 point). With eps_OS 1 the paper's method stops a
 more than 5 %; the table says which pairs do and by how much::
 
     python bench/wncsca_methods.py [--scenario scenarios/jcstr_wncs.yaml] [--quick] [--repeat N]
+                                   [--against REV]
+
+``--against REV`` first times the paper's method on the worked example (the scenario's own
+setting) here and at git revision ``REV``, alternately (``bench/against.py``): the before and
+after of a change to the agent's simulator.
 
 Each method runs on a fresh model (no shared memo of simulations); both run once on the worked
 example before anything is timed; ``--repeat N`` keeps each method's fastest of N runs.
@@ -26,6 +31,8 @@ import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+from against import ROOT, Comparison, measure_in
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.fast import energy_rate, fast_periods
@@ -43,6 +50,17 @@ GRID = [
     for a, b in itertools.product((0.0, 0.05, 0.1, 0.15, 0.2), (0.0, 0.04, 0.08, 0.12))
 ]
 LIMIT_REL = 0.05  # "within 5 %" of the paper's periods
+
+# the worked example by the paper's method, with the tree's own bench code: [seconds, sims]
+WORKED_PAPER_S = """
+import json, sys
+sys.path.insert(0, ROOT + "/bench")
+import wncsca_methods as wm
+scenario = wm.load_scenario(wm.SCENARIO)
+wm.run(scenario, "wncsca", {}, [wm.WORKED])
+paper = wm.run(scenario, "wncsca", {}, [wm.WORKED], repeat=3)[0].paper
+print(json.dumps([paper.decision_time_s, paper.simulations]))
+"""
 
 Method = Callable[[LoopModel, Mapping[str, float]], Assignment]
 METHODS: dict[str, Method] = {
@@ -188,6 +206,25 @@ def grid_table(rows: list[Row], limit: float, tol: float) -> None:
     print(f"fast or energy choices over the limit or infeasible: {len(over)} {over or ''}")
 
 
+def against(rev: str, rounds: int) -> None:
+    """The paper's method's decision time on the worked example here and at ``rev``."""
+    seconds: dict[str, list[float]] = {"this tree": [], rev: []}
+    sims: dict[str, set[int]] = {"this tree": set(), rev: set()}
+    with Comparison(rev) as cmp:
+        for _ in range(rounds):
+            for label, tree in (("this tree", ROOT), (rev, cmp.tree)):
+                s, n = measure_in(tree, WORKED_PAPER_S)
+                seconds[label].append(s)
+                sims[label].add(n)
+    print(f"## Worked example, paper's method: decision time here and at {rev}")
+    print()
+    print("| tree | fastest s | non-linear simulations |")
+    print("|---|---:|---:|")
+    for label, xs in seconds.items():
+        print(f"| {label} | {min(xs):.2f} | {', '.join(map(str, sorted(sims[label])))} |")
+    print(f"\nthis tree / {rev}: {min(seconds['this tree']) / min(seconds[rev]):.2f}\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", type=Path, default=SCENARIO)
@@ -198,7 +235,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--repeat", type=int, default=1, help="runs per method and pair; the fastest is kept"
     )
+    parser.add_argument("--against", metavar="REV", help="also time the worked example at REV")
     args = parser.parse_args(argv)
+    if args.against:
+        against(args.against, rounds=3)
     scenario = load_scenario(args.scenario)
     own = scenario.nodes[args.agent]
     run(scenario, args.agent, {}, [WORKED])  # warm-up: imports, caches

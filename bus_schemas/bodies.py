@@ -5,10 +5,9 @@ Bodies are frozen and forbid extra fields; time is integer ticks, never float.
 
 from __future__ import annotations
 
-import math
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
     "Sample",
@@ -41,10 +40,8 @@ __all__ = [
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 
 
-def _finite(value: float) -> float:
-    if not math.isfinite(value):
-        raise ValueError(f"must be a finite number, got {value!r}")
-    return value
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+"""A float that is neither NaN nor infinite (checked by pydantic's core, not in Python)."""
 
 
 class Sample(BaseModel):
@@ -52,10 +49,8 @@ class Sample(BaseModel):
 
     model_config = _FROZEN
 
-    value: float = Field(description="measured value, in the signal's engineering unit")
+    value: Finite = Field(description="measured value, in the signal's engineering unit")
     t_sampled: int = Field(ge=0, strict=True, description="time the sample was taken, ticks")
-
-    _check_value = field_validator("value")(_finite)
 
 
 class Move(BaseModel):
@@ -63,10 +58,8 @@ class Move(BaseModel):
 
     model_config = _FROZEN
 
-    value: float = Field(description="actuator command, in the input's engineering unit")
+    value: Finite = Field(description="actuator command, in the input's engineering unit")
     t_computed: int = Field(ge=0, strict=True, description="time the move was computed, ticks")
-
-    _check_value = field_validator("value")(_finite)
 
 
 class Estimate(BaseModel):
@@ -75,15 +68,8 @@ class Estimate(BaseModel):
 
     model_config = _FROZEN
 
-    values: tuple[float, ...] = Field(min_length=1, description="the transmitted vector")
+    values: tuple[Finite, ...] = Field(min_length=1, description="the transmitted vector")
     t_sent: int = Field(ge=0, strict=True, description="time it was transmitted, ticks")
-
-    @field_validator("values")
-    @classmethod
-    def _finite_values(cls, values: tuple[float, ...]) -> tuple[float, ...]:
-        for v in values:
-            _finite(v)
-        return values
 
 
 class Setpoint(BaseModel):
@@ -92,15 +78,13 @@ class Setpoint(BaseModel):
 
     model_config = _FROZEN
 
-    value: float
+    value: Finite
     t_apply: int | None = Field(
         default=None,
         ge=0,
         strict=True,
         description="announced change: when it is to be applied, ticks (None: at once)",
     )
-
-    _check_value = field_validator("value")(_finite)
 
 
 class PlantState(BaseModel):
@@ -114,15 +98,13 @@ class PlantState(BaseModel):
     model_config = _FROZEN
 
     t: tuple[int, ...] = Field(description="grid instants, ticks")
-    values: dict[str, tuple[float, ...]] = Field(description="state variable -> one value per t")
+    values: dict[str, tuple[Finite, ...]] = Field(description="state variable -> one value per t")
 
     @model_validator(mode="after")
     def _same_lengths(self) -> PlantState:
         for name, column in self.values.items():
             if len(column) != len(self.t):
                 raise ValueError(f"values.{name}: {len(column)} values for {len(self.t)} times")
-            for v in column:
-                _finite(v)
         return self
 
 

@@ -7,6 +7,7 @@ not depend on the run id. Every name is checked to be one key chunk.
 
 from __future__ import annotations
 
+import functools
 import re
 
 __all__ = [
@@ -54,11 +55,17 @@ _NAME = re.compile(NAME_PATTERN)
 
 def check_name(name: str, what: str = "name") -> str:
     """Return ``name`` if it is a valid single key chunk, else raise ``ValueError``."""
-    if not isinstance(name, str) or not _NAME.match(name):
+    if not isinstance(name, str) or not _is_name(name):
         raise ValueError(
             f"{what} {name!r} is not a valid key chunk (letters, digits, '_' and '-' only)"
         )
     return name
+
+
+@functools.lru_cache(maxsize=4096)
+def _is_name(name: str) -> bool:
+    # nodes build the same few keys every round: match each name once
+    return _NAME.match(name) is not None
 
 
 def intersects(pattern: str, key: str) -> bool:

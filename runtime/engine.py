@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
-from typing import Any
+from operator import attrgetter
+from typing import Any, NamedTuple
 
 from pydantic import BaseModel
 
@@ -50,9 +50,11 @@ class _Fields(Mapping[str, Any]):
         return len(type(self._body).model_fields)
 
 
-@dataclass(frozen=True, slots=True)
-class Message:
-    """One message passed in memory: what a bus envelope holds, with the body as published."""
+class Message(NamedTuple):
+    """One message passed in memory: what a bus envelope holds, with the body as published.
+
+    A named tuple rather than a frozen dataclass: as immutable, and three times cheaper to make
+    (the engine makes one per published message)."""
 
     key: str  # run-relative
     src: str
@@ -104,13 +106,19 @@ class DirectEngine:
         planner = self.planner
         behaviours = self.behaviours
         next_times: dict[str, int | None] = {n: b.next_time for n, b in behaviours.items()}
+        seq = self._seq
+        order = attrgetter("key", "src", "seq")
         inbox: list[Message] = []
         while not planner.finished:
             r, t = planner.round, planner.t
             boxes: dict[str, list[tuple[str, Message, Any]]] = {}
             for m in inbox:
+                delivery = (m.key, m, m.body_as)
                 for name in self._listeners(m.key):
-                    boxes.setdefault(name, []).append((m.key, m, m.body_as))
+                    if name in boxes:
+                        boxes[name].append(delivery)
+                    else:
+                        boxes[name] = [delivery]
             published: list[Message] = []
             counts: dict[str, int] = {}
             for name, behaviour in behaviours.items():
@@ -119,10 +127,11 @@ class DirectEngine:
                     continue  # nothing to do in this round
                 outputs, next_times[name] = behaviour.run_round(r, t, mine or ())
                 for key, body in outputs:
-                    published.append(Message(key, name, self._seq[name], r, t, body))
-                    self._seq[name] += 1
+                    published.append(Message(key, name, seq[name], r, t, body))
+                    seq[name] += 1
                     counts[key] = counts.get(key, 0) + 1
-            published.sort(key=lambda m: (m.key, m.src, m.seq))
+            if len(published) > 1:
+                published.sort(key=order)
             if self.on_round is not None and published:
                 self.on_round(published)
             planner.advance_with(counts, next_times)
@@ -140,5 +149,3 @@ class DirectEngine:
     def dropped_invalid(self) -> dict[str, int]:
         """Invalid input per key, as the clock merges it (each subscriber sees every message)."""
         return merge_dropped(b.dropped_invalid for b in self.behaviours.values())
-
-

@@ -22,6 +22,9 @@ __all__ = ["RecordBuilder"]
 Body = Callable[[], Mapping[str, Any]]
 """The body of a message as a mapping, computed only when the record needs it."""
 
+_Reader = Callable[[int, int, Body], None]
+"""``read(t, order, body)``: what the record takes from one message on a key."""
+
 _MONITOR = keys.monitor_assessment("x").removesuffix("x")
 
 _WNCSCA = {
@@ -42,6 +45,8 @@ class RecordBuilder:
         self._sp_keys = {scenario.setpoint_key(name): name for name in scenario.loops}
         self._governed = scenario.agent_node() is not None
         self.unreadable: dict[str, int] = {}
+        self._keeps: dict[str, bool] = {}
+        self._readers: dict[str, _Reader | None] = {}
         rec = RunRecord(
             scenario=scenario.name,
             seed=scenario.seed,
@@ -68,80 +73,133 @@ class RecordBuilder:
     def keeps(self, key: str) -> bool:
         """Whether the record keeps the body of messages on ``key`` whole (then it must be the
         mapping a bus subscriber gets); of the others it reads scalar fields only."""
-        return (
-            key in _WNCSCA
-            or key in (keys.net_applied(), keys.net_proposal(), keys.net_stats())
-            or key.startswith(_MONITOR)
-        )
+        kept = self._keeps.get(key)
+        if kept is None:
+            kept = self._keeps[key] = (
+                key in _WNCSCA
+                or key in (keys.net_applied(), keys.net_proposal(), keys.net_stats())
+                or key.startswith(_MONITOR)
+            )
+        return kept
 
     def add(self, t: int, key: str, body: Body) -> None:
         """One message on run-relative ``key`` stamped ``t`` (ticks). A body the record cannot
         read (a hostile or malformed message the nodes dropped) is counted in
         :attr:`unreadable` and leaves the record as it was."""
-        try:
-            self._add(t, key, body)
-        except (KeyError, TypeError, ValueError):
-            self.unreadable[key] = self.unreadable.get(key, 0) + 1
-
-    def _add(self, t: int, key: str, body: Body) -> None:
         rec = self.rec
         order = self._order
         self._order += 1
         rec.published[key] = rec.published.get(key, 0) + 1
+        if key in self._readers:
+            read = self._readers[key]
+        else:
+            read = self._readers[key] = self._reader(key)
+        if read is None:
+            return
+        try:
+            read(t, order, body)
+        except (KeyError, TypeError, ValueError):
+            self.unreadable[key] = self.unreadable.get(key, 0) + 1
+
+    def _reader(self, key: str) -> _Reader | None:
+        """What the record takes from a message on ``key`` (``None``: only its count); worked
+        out once per key."""
+        rec = self.rec
         parts = key.split("/")
         if key in self._sp_keys:
-            rec.loops[self._sp_keys[key]].setpoints.append((t, float(body()["value"])))
-        elif len(parts) == 3 and parts[0] == "loop" and parts[1] in rec.loops:
+            setpoints = rec.loops[self._sp_keys[key]].setpoints
+            return lambda t, order, body: setpoints.append((t, float(body()["value"])))
+        if len(parts) == 3 and parts[0] == "loop" and parts[1] in rec.loops:
             loop = rec.loops[parts[1]]
             if parts[2] == "meas":
-                value = body()
-                loop.t.append(t)
-                loop.y.append(float(value["value"]))
-                loop.t_sampled.append(int(value["t_sampled"]))
-            elif parts[2] == "u":
-                value = body()
+
+                def meas(t: int, order: int, body: Body) -> None:
+                    value = body()
+                    y, t_sampled = float(value["value"]), int(value["t_sampled"])
+                    loop.t.append(t)
+                    loop.y.append(y)
+                    loop.t_sampled.append(t_sampled)
+
+                return meas
+            if parts[2] == "u":
                 made = self._moves.setdefault(parts[1], {})
-                made.setdefault(int(value["t_computed"]), []).append(float(value["value"]))
-        elif len(parts) == 3 and parts[0] == "link" and parts[1] in rec.links:
+
+                def move(t: int, order: int, body: Body) -> None:
+                    value = body()
+                    made.setdefault(int(value["t_computed"]), []).append(float(value["value"]))
+
+                return move
+            return None
+        if len(parts) == 3 and parts[0] == "link" and parts[1] in rec.links:
             link = rec.links[parts[1]]
             if parts[2] == "tx":
-                link.sent += 1
-            elif parts[2] == "rx":
-                link.t.append(t)
-                link.t_sent.append(int(body()["t_sent"]))
-        elif key == keys.net_applied():
-            applied = {"t": t, **body()}
-            if applied["event"] in ("rates", "no_alternative"):
-                rec.wncsca.setdefault("applied", []).append(applied)
-            else:
-                rec.configurations.append(applied)
-        elif key == keys.net_proposal() and self._governed:
-            rec.wncsca.setdefault("proposals", []).append({"t": t, "order": order, **body()})
-        elif key in _WNCSCA:
-            rec.wncsca.setdefault(_WNCSCA[key], []).append({"t": t, "order": order, **body()})
-        elif key.startswith(_MONITOR):
-            loop_name = key.removeprefix(_MONITOR)
-            rec.monitor.setdefault(loop_name, []).append({"t": t, **body()})
-        elif key == keys.net_stats():
-            rec.net_nodes.update(body()["nodes"])  # the last one wins
-        elif key == keys.net_lost():
-            loss = body()
-            if loss["direction"] == "link":
-                if loss["loop"] in rec.links:
-                    rec.links[loss["loop"]].lost += 1
-            elif loss["loop"] in rec.loops:
-                lost_loop = rec.loops[loss["loop"]]
-                if loss["direction"] == "sensor":
-                    lost_loop.lost += 1
-                else:
-                    lost_loop.lost_moves += 1
-        elif len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
+
+                def sent(t: int, order: int, body: Body) -> None:
+                    link.sent += 1
+
+                return sent
+            if parts[2] == "rx":
+
+                def received(t: int, order: int, body: Body) -> None:
+                    t_sent = int(body()["t_sent"])
+                    link.t.append(t)
+                    link.t_sent.append(t_sent)
+
+                return received
+            return None
+        if key == keys.net_applied():
+            return self._applied
+        if key == keys.net_proposal():
+            if not self._governed:
+                return None
+            proposals = rec.wncsca.setdefault("proposals", [])
+            return lambda t, order, body: proposals.append({"t": t, "order": order, **body()})
+        if key in _WNCSCA:
+            kept = rec.wncsca.setdefault(_WNCSCA[key], [])
+            return lambda t, order, body: kept.append({"t": t, "order": order, **body()})
+        if key.startswith(_MONITOR):
+            assessments = rec.monitor.setdefault(key.removeprefix(_MONITOR), [])
+            return lambda t, order, body: assessments.append({"t": t, **body()})
+        if key == keys.net_stats():
+            # the last one wins
+            return lambda t, order, body: rec.net_nodes.update(body()["nodes"])
+        if key == keys.net_lost():
+            return self._lost
+        if len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
             plant = rec.plants.get(parts[1])
-            if plant is not None:
+            if plant is None:
+                return None
+
+            def state(t: int, order: int, body: Body) -> None:
                 batch = body()
                 columns = [batch["values"][s] for s in plant.state_names]
-                plant.t.extend(int(v) for v in batch["t"])
-                plant.x.extend([float(v) for v in row] for row in zip(*columns, strict=True))
+                times = [int(v) for v in batch["t"]]
+                rows = [[float(v) for v in row] for row in zip(*columns, strict=True)]
+                plant.t.extend(times)
+                plant.x.extend(rows)
+
+            return state
+        return None
+
+    def _applied(self, t: int, order: int, body: Body) -> None:
+        applied = {"t": t, **body()}
+        if applied["event"] in ("rates", "no_alternative"):
+            self.rec.wncsca.setdefault("applied", []).append(applied)
+        else:
+            self.rec.configurations.append(applied)
+
+    def _lost(self, t: int, order: int, body: Body) -> None:
+        rec = self.rec
+        loss = body()
+        if loss["direction"] == "link":
+            if loss["loop"] in rec.links:
+                rec.links[loss["loop"]].lost += 1
+        elif loss["loop"] in rec.loops:
+            lost_loop = rec.loops[loss["loop"]]
+            if loss["direction"] == "sensor":
+                lost_loop.lost += 1
+            else:
+                lost_loop.lost_moves += 1
 
     def finish(
         self, *, dropped_invalid: dict[str, int], dropped_nodes: dict[str, int]
