@@ -19,6 +19,7 @@ the node then executes once per sampling instant with both new samples (the hold
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
@@ -122,8 +123,6 @@ def cascade_variant(
     assess the simple-feedback loop). Validate the result with
     :func:`runtime.scenario.parse_scenario`.
     """
-    import copy
-
     out = copy.deepcopy(dict(data))
     base = out["loops"][loop]
     name2 = secondary_loop or f"{loop}_secondary"

@@ -87,6 +87,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from scipy.linalg import expm
 
 from plants.column import THESIS_A_M, THESIS_B_M, THESIS_C_M
 
@@ -410,8 +411,6 @@ class MRAC:
         c = self.config
         if c.reference_discretization == "zoh":
             if dt not in self._zoh_cache:
-                from scipy.linalg import expm
-
                 n = self.n
                 aug = np.zeros((2 * n, 2 * n))
                 aug[:n, :n], aug[:n, n:] = self.A_m * dt, self.B_m * dt

@@ -67,6 +67,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 from scipy.linalg import block_diag, expm
+from scipy.signal import place_poles
 
 from plants.integrate import rk4
 
@@ -278,8 +279,6 @@ class QDCDesign(BaseModel):
             if self.controller_method == "diagonal":
                 K[i][i] = np.linalg.solve(b_i, np.diag(poles) - a_i)
             else:
-                from scipy.signal import place_poles
-
                 K[i][i] = -place_poles(a_i, b_i, poles).gain_matrix
             for j in range(n):
                 if j == i:
@@ -334,8 +333,6 @@ def observer_gain(
         e_p = np.zeros((p, 1))
         e_p[-1, 0] = 1.0
         return phi @ np.linalg.solve(obs, e_p)
-    from scipy.signal import place_poles
-
     return place_poles(A.T, C.T, np.asarray(poles, dtype=float)).gain_matrix.T
 
 

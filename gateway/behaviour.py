@@ -42,6 +42,7 @@ from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
 from core.time import to_ticks, to_units
 from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier
+from gateway.topology import parse_event
 
 __all__ = ["NetworkBehaviour"]
 
@@ -178,8 +179,6 @@ class NetworkBehaviour(Behaviour):
 
     def _on_injected(self, env: RawEnvelope, msg: NetworkEvent) -> None:
         """An event injected while the run goes on (``wncs inject``), stamped by the clock."""
-        from gateway.topology import parse_event
-
         try:
             event = parse_event(msg.event)
             paths = self.carrier.apply(event, self.now)

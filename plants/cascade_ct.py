@@ -43,16 +43,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
+import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+from scipy.linalg import expm
 
 from plants.knots import CHUNK, Knots
-
-if TYPE_CHECKING:
-    import control
 
 __all__ = ["CHUNK", "CascadeCTParams", "CascadeCT", "SampledCascadeCT", "sampled", "step_response"]
 
@@ -205,8 +204,6 @@ class CascadeCT:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """The model as a ``control.StateSpace`` (outputs ``y1``, ``y2``, ``y3``)."""
-        import control  # imported here: nodes never linearize and control is slow to import
-
         a, b = self.jacobians()
         c = np.zeros((3, a.shape[0]))
         c[0, self._n + 2] = 1.0
@@ -228,8 +225,6 @@ def step_response(params: CascadeCTParams, dt: float, n: int) -> dict[str, NDArr
     dict
         State name -> response, shape ``(n,)``.
     """
-    from scipy.linalg import expm
-
     plant = CascadeCT(params)
     a, b = plant.jacobians()
     k = a.shape[0]
@@ -274,8 +269,6 @@ def sampled(params: CascadeCTParams, dt: float, n: int) -> SampledCascadeCT:
     ValueError
         If ``dt`` is not a whole number of ``noise_period``.
     """
-    from scipy.linalg import expm
-
     q = round(dt / params.noise_period)
     if q < 1 or abs(q * params.noise_period - dt) > 1e-9 * dt:
         raise ValueError(

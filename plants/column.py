@@ -93,14 +93,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
+import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-if TYPE_CHECKING:
-    import control
+from scipy.integrate import solve_ivp
+from scipy.linalg import null_space, solve_continuous_lyapunov
+from scipy.optimize import fsolve
 
 __all__ = [
     "ColumnParams",
@@ -324,8 +325,6 @@ class Column:
 
     def linearize(self, x: Array, u: Array) -> control.StateSpace:
         """Linear model in deviation variables at ``(x, u)``, outputs ``(x_D, x_B)``."""
-        import control
-
         jac, bu = self.jacobian(x, u)
         c = np.zeros((2, self.n))
         c[0, -1] = 1.0
@@ -354,9 +353,6 @@ class Column:
         ValueError
             If no steady state with compositions in ``[0, 1]`` is found.
         """
-        from scipy.integrate import solve_ivp
-        from scipy.optimize import fsolve
-
         u = self.nominal_input() if u is None else np.asarray(u, dtype=float)
         p = self.params
         if u[1] + p.V_F - u[0] <= 0 or u[0] + p.L_F - u[1] <= 0:
@@ -410,8 +406,6 @@ class Column:
         ValueError
             If an output is missing, out of ``(0, 1)``, or no steady state reaches it.
         """
-        from scipy.optimize import fsolve
-
         missing = [nm for nm in self.output_names if nm not in y_bar]
         if missing:
             raise ValueError(f"Column.equilibrium: set points missing for outputs {missing}")
@@ -520,8 +514,6 @@ class ReducedModel:
 
     def to_statespace(self) -> control.StateSpace:
         """As a python-control state-space object."""
-        import control
-
         return control.ss(self.A, self.B, self.C, self.D)
 
 
@@ -553,8 +545,6 @@ def balanced_reduction(
     ValueError
         If ``A`` is not stable (Hurwitz), shapes disagree, or ``order`` is out of range.
     """
-    from scipy.linalg import null_space, solve_continuous_lyapunov
-
     a, b, c = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
     n = a.shape[0]
     if a.shape != (n, n) or b.shape[0] != n or c.shape[1] != n:

@@ -58,14 +58,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
 
+import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-if TYPE_CHECKING:
-    import control
 
 __all__ = ["TankParams", "Tank", "SIM_PARAMS", "RIG_PARAMS", "RIG_U_MAX"]
 
@@ -179,8 +176,6 @@ class Tank:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
-        import control  # imported here: nodes never linearize and control is slow to import
-
         A, B = self.jacobians(x, u)
         return control.ss(
             A, B, np.array([[1.0]]), np.zeros((1, 2)),

@@ -52,22 +52,6 @@ LAZY_ALLOWED = ("matplotlib",)  # optional heavy imports may sit inside function
 # a known violation, listed so the rest is enforced today. The list may only shrink
 # (``test_no_stale_exceptions``); an import not on it fails the test.
 NOT_YET_CUT = {
-    # lazy imports of numerics (scipy/control) in plant and law cores: to hoist
-    "plants.cascade_ct": {"control", "scipy.linalg"},
-    "plants.column": {"control", "scipy.integrate", "scipy.optimize", "scipy.linalg"},
-    "plants.cstr_recycle": {"control"},
-    "plants.jcstr": {"control"},
-    "plants.tank": {"control"},
-    "controllers.cascade_law": {"copy"},
-    "controllers.mrac": {"scipy.linalg"},
-    "controllers.qdc": {"scipy.signal"},
-    "gateway.behaviour": {"gateway.topology"},
-    "agents.wncsca.coordinator": {
-        "agents.wncsca.fast",
-        "gateway.energy",
-        "gateway.paths",
-        "gateway.topology",
-    },
     # the monitor's run-file readers sit in its core module (run_data) beside RunSeries
     "agents.monitor.behaviour": {
         "agents.monitor.run_data",

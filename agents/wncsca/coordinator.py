@@ -32,9 +32,13 @@ from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.decision import Decision, ProposalError, decide, path_delay
+from agents.wncsca.fast import fast_periods
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from gateway.energy import projected_lifetime
+from gateway.paths import Route
+from gateway.topology import Topology
 
 __all__ = ["Coordinator", "Negotiation", "assign"]
 
@@ -50,8 +54,6 @@ def assign(
     the paper's for laws it cannot linearise, and says so)."""
     cfg = model.config
     if cfg.method == "fast":
-        from agents.wncsca.fast import fast_periods
-
         try:
             return fast_periods(model, delays, objective=cfg.objective, weights=weights)
         except ValueError as err:
@@ -81,7 +83,7 @@ class Coordinator:
         The validated scenario.
     model : LoopModel
         The agent's model of its loops, handed its simulator
-        (:func:`runtime.agent_model.coordinator` builds both).
+        (:func:`agents.wncsca.trials.coordinator` builds both).
     config : WncscaConfig
         The agent's configuration.
     """
@@ -100,14 +102,13 @@ class Coordinator:
         self.proposal: int | None = None  # the last accepted proposal (any network)
         self.carried = {
             n: [lp for lp in self.loops if scenario.loops[lp].network == n]
-            for n, node in scenario.nodes.items()
-            if node.kind in ("network", "gateway")
+            for n in scenario.carriers()
         }
         # wired loops: constant delays from the scenario; WSN loops: from accepted proposals
         self.delays: dict[str, float] = {
             lp: scenario.loops[lp].tau_d + scenario.loops[lp].tau_a
             for lp in self.loops
-            if scenario.nodes[scenario.loops[lp].network].kind == "network"
+            if not scenario.is_wireless(scenario.loops[lp].network)
         }
         # linked controllers (seed 001): update periods by analysis (agents/wncsca/links.py)
         self.link_groups: list[LinkGroup] = (
@@ -116,9 +117,7 @@ class Coordinator:
             else []
         )
         self.link_delays: dict[str, float] = {
-            n: lk.delay
-            for n, lk in scenario.links.items()
-            if scenario.nodes[lk.network].kind == "network"
+            n: lk.delay for n, lk in scenario.links.items() if not scenario.is_wireless(lk.network)
         }
         self.link_periods: dict[str, float] = {n: lk.period for n, lk in scenario.links.items()}
         self._bounds: dict[str, DelayBound] | None = None
@@ -152,7 +151,7 @@ class Coordinator:
         """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``."""
         pid = body.get("id") if isinstance(body, Mapping) else None
         valid_id = isinstance(pid, int) and not isinstance(pid, bool) and pid >= 0
-        if network not in self.carried or not self.scenario.nodes[network].kind == "gateway":
+        if network not in self.carried or not self.scenario.is_wireless(network):
             return self._refused(network, pid if valid_id else None, f"{network!r} is no gateway")
         if not isinstance(body, Mapping) or not valid_id:
             return self._refused(network, None, "id: missing or not an integer >= 0")
@@ -331,10 +330,6 @@ class Coordinator:
     def energy(self, network: str, paths: Any) -> dict[str, Any] | None:
         """Projected network lifetime (the first battery node to run out) under the control
         periods against the benchmark periods, over the proposal's routes."""
-        from gateway.energy import projected_lifetime
-        from gateway.paths import Route
-        from gateway.topology import Topology
-
         cfg = self.scenario.nodes[network]
         topology = Topology(cfg.topology)
         routes = {}
