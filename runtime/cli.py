@@ -21,7 +21,17 @@ from pathlib import Path
 from typing import Any
 
 from agents.monitor.command import add_assess_arguments, run_from_args
+from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
+from kernel.bus import open_client
+from runtime.analysis import analyze, parse_delays
+from runtime.artefacts import RUN_FILE, SCENARIO_FILE
+from runtime.history import load_record
+from runtime.inject import build_request, send
+from runtime.launcher import launch
+from runtime.nodes import bus_node, check_node, clock_runner
+from runtime.report import load_saved_record, write_plots, write_summary
+from runtime.scenario import load_scenario
 
 __all__ = ["main", "build_parser"]
 
@@ -132,8 +142,6 @@ def _table(summary: dict[str, Any]) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from runtime.launcher import launch
-
     def _terminate(signum: int, frame: object) -> None:
         raise KeyboardInterrupt  # unwinds the launcher, which stops its children
 
@@ -159,8 +167,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
         print(_table(s))
         if "wncsca" in s:
-            from agents.wncsca.timeline import format_timeline
-
             print("\ncoordination agent (WNCSCA) timeline:")
             print(format_timeline(s))
         pngs = sorted(p.name for p in Path(args.out).glob("*.png"))
@@ -169,10 +175,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_node(args: argparse.Namespace) -> int:
-    from kernel.bus import open_client
-    from runtime.nodes import bus_node, check_node, clock_runner
-    from runtime.scenario import load_scenario
-
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
         scenario = scenario.model_copy(update={"seed": args.seed})
@@ -192,10 +194,6 @@ def _cmd_node(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from runtime.launcher import RUN_FILE, SCENARIO_FILE
-    from runtime.report import load_saved_record, write_plots, write_summary
-    from runtime.scenario import load_scenario
-
     out = Path(args.dir)
     try:
         info = json.loads((out / RUN_FILE).read_text())
@@ -203,8 +201,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
         raise ConfigError(f"{out / RUN_FILE}: not a run directory ({err})") from err
     scenario = load_scenario(out / SCENARIO_FILE)
     if (out / "history.sqlite").exists():
-        from runtime.history import load_record
-
         rec = load_record(out / "history.sqlite", scenario, engine=info["engine"])
     else:
         rec = load_saved_record(out)
@@ -217,18 +213,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
     paths = write_plots(rec, out, scenario=scenario)
     print(_table(summary))
     if "wncsca" in summary:
-        from agents.wncsca.timeline import format_timeline
-
         print(format_timeline(summary))
     print("plots: " + ", ".join(str(p) for p in paths))
     return 0
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from agents.wncsca.timeline import format_timeline
-    from runtime.analysis import analyze, parse_delays
-    from runtime.scenario import load_scenario
-
     scenario = load_scenario(args.scenario)
     try:
         delays = None if args.delays is None else parse_delays(args.delays, scenario.loops)
@@ -245,9 +235,6 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def _cmd_inject(args: argparse.Namespace) -> int:
-    from runtime.inject import build_request, send
-    from runtime.launcher import RUN_FILE
-
     words = list(args.words)
     run_dir = None
     if args.listen is not None:

@@ -29,9 +29,12 @@ import yaml
 from bus_schemas import Stop, Tick, codec, keys
 from core.errors import NodeFault, SchemaError
 from core.time import to_units
-from kernel.bus import is_put
+from kernel.bus import DEFAULT_LISTEN, is_put, open_client, open_router
+from kernel.clock import ClockRunner
 from runtime.artefacts import RUN_FILE, SCENARIO_FILE
 from runtime.direct import simulate
+from runtime.history import load_record
+from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
 
@@ -195,9 +198,6 @@ def _launch_bus(
     progress: TextIO | None,
     wall0: float,
 ) -> RunResult:
-    from kernel.bus import DEFAULT_LISTEN, open_router
-    from runtime.history import load_record
-
     run_id = run_info["run_id"]
     router, locators = open_router(listen or DEFAULT_LISTEN)
     endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
@@ -382,10 +382,6 @@ def _run_threads(
     engine: str,
     prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
-    from kernel.bus import open_client
-    from kernel.clock import ClockRunner
-    from runtime.nodes import bus_node, clock_runner
-
     errors: dict[str, str] = {}
     result: dict[str, int] = {}
     clock: list[ClockRunner] = []

@@ -6,8 +6,11 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from core.record import RunRecord, summarize
+from agents.wncsca.plots import run_plots
+from controllers.law_plots import figures_of
+from core.record import LoopRecord, PlantRecord, RunRecord, summarize, wncsca_summary
 from core.time import to_units
+from runtime.executions import multi_loop_executions
 
 if TYPE_CHECKING:
     from runtime.scenario import Scenario
@@ -58,8 +61,6 @@ def save_record(rec: RunRecord, out: Path) -> None:
 
 def load_saved_record(out: Path) -> RunRecord:
     """Inverse of :func:`save_record`."""
-    from core.record import LoopRecord, PlantRecord
-
     data = json.loads((out / RECORD_FILE).read_text())
     rec = RunRecord(
         data["scenario"], data["seed"], data["engine"], data["end_time"], data["time_unit"]
@@ -121,9 +122,6 @@ def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) 
         plt.close(fig)
         paths.append(path)
     if rec.wncsca:
-        from agents.wncsca.plots import run_plots
-        from core.record import wncsca_summary
-
         paths += run_plots(
             wncsca_summary(rec.wncsca), out, unit=unit, end_time=to_units(rec.end_time)
         )
@@ -145,9 +143,6 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from controllers.law_plots import figures_of
-    from runtime.executions import multi_loop_executions
 
     paths = []
     for name, cfg in sorted(scenario.nodes.items()):

@@ -17,8 +17,12 @@ and with which secondary measurement (Lakshminarayanan et al. 2006, variance dec
   :class:`~agents.monitor.errors.IdentificationError` (reason).
 * :mod:`agents.monitor.config` -- analysis settings and the monitor node's configuration
   (``kind: monitor`` in scenarios).
+* :mod:`agents.monitor.columns` -- the columns of a run by name (``LOOP``, ``LOOP.sp``,
+  ``PLANT.STATE``).
 * :mod:`agents.monitor.run_data` -- a loop's routine data from a run's messages (live or
-  recorded): column names, alignment, sliding window.
-* :mod:`agents.monitor.node` -- the monitor on the bus (``monitor/assessment/<loop>``).
-* :mod:`agents.monitor.command` and :mod:`agents.monitor.report` -- ``wncs assess`` and its text.
+  recorded): alignment, sliding window.
+* :mod:`agents.monitor.behaviour` -- the monitor on the bus (``monitor/assessment/<loop>``).
+* :mod:`agents.monitor.command` and :mod:`agents.monitor.report` -- ``wncs assess`` and its text;
+  :mod:`agents.monitor.run_files` reads a run directory for it (application layer, as are the
+  plant-wide :mod:`agents.monitor.audit` and :mod:`agents.monitor.audit_report`).
 """

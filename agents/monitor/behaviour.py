@@ -19,6 +19,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from agents.monitor.config import rows_needed
+from agents.monitor.errors import DataError
+from agents.monitor.run_data import RunSeries, assess_series
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, keys
 from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
@@ -110,8 +113,6 @@ def run_assessment(
     DataError
         The window's data are refused (:meth:`agents.monitor.run_data.RunSeries.table`).
     """
-    from agents.monitor.run_data import assess_series
-
     result, info = assess_series(
         series,
         cfg.d,
@@ -127,8 +128,6 @@ class MonitorBehaviour(Behaviour):
     def __init__(self, name: str, scenario: Any) -> None:
         super().__init__(name)
         self.scenario = scenario
-        from agents.monitor.run_data import RunSeries
-
         cfg = self.scenario.nodes[self.name]
         try:
             cfg.check(self.scenario, self.name)
@@ -161,9 +160,6 @@ class MonitorBehaviour(Behaviour):
         self._assess(final=True)
 
     def _assess(self, *, final: bool) -> None:
-        from agents.monitor.assess import rows_needed
-        from agents.monitor.errors import DataError
-
         cfg = self.cfg
         info = self.series.info()
         need = rows_needed(cfg.analysis, 2 if cfg.secondaries else 1)

@@ -15,7 +15,7 @@
 ``DATA`` is a CSV file of routine data as historians export it (a header line, then one row per
 sample; columns such as ``time;SP;PV;OP;T2``), or a run directory (``history.sqlite`` of a bus
 run, or ``record.json`` of a direct run), whose columns are named as in
-:mod:`agents.monitor.run_data`: ``LOOP`` (the samples delivered to the loop's controller),
+:mod:`agents.monitor.columns`: ``LOOP`` (the samples delivered to the loop's controller),
 ``LOOP.sp`` (its set point), ``PLANT.STATE`` (a plant state on its monitoring grid).
 
 ``--delays`` gives, per secondary in order, ``d1`` (samples from the secondary to the primary)
@@ -50,8 +50,16 @@ from pydantic import ValidationError
 from agents.monitor.assess import DEFAULT_AUTO, DEFAULT_GOOD, assess_csv
 from agents.monitor.audit import collect_loops, load_audit_config, rank, run_audit
 from agents.monitor.audit_report import format_table, write_audit
+from agents.monitor.columns import SP_SUFFIX
 from agents.monitor.config import MonitorConfig, ScreeningConfig, SecondarySpec
 from agents.monitor.errors import DataError
+from agents.monitor.report import format_report
+from agents.monitor.run_data import RunSeries, assess_series
+from agents.monitor.run_files import feed_history, feed_record
+from core.errors import ConfigError
+from core.time import to_ticks
+from runtime.history import read_meta
+from runtime.scenario import load_scenario
 
 __all__ = [
     "add_assess_arguments",
@@ -297,17 +305,6 @@ def _assess_run(
     until: float | None,
     cfg: MonitorConfig,
 ) -> dict[str, Any]:
-    from agents.monitor.errors import DataError
-    from agents.monitor.run_data import (
-        SP_SUFFIX,
-        RunSeries,
-        assess_series,
-        feed_history,
-        feed_record,
-    )
-    from core.time import to_ticks
-    from runtime.scenario import load_scenario
-
     scen_file = run_dir / "scenario.yaml"
     if not scen_file.exists():
         raise DataError(f"{str(run_dir)!r} is not a run directory (no scenario.yaml)")
@@ -324,8 +321,6 @@ def _assess_run(
     series = RunSeries(scenario, primary, columns, start=to_ticks(start or 0.0), window=window)
     engine = "direct"
     if (run_dir / "history.sqlite").exists():
-        from runtime.history import read_meta
-
         engine = read_meta(run_dir / "history.sqlite").get("engine", "?")
         feed_history(run_dir / "history.sqlite", series, until=t_until)
     elif (run_dir / "record.json").exists():
@@ -372,10 +367,6 @@ def run(
     **options: Any,
 ) -> int:
     """``wncs assess``: assess, print, write the JSON report; return the exit code."""
-    from agents.monitor.errors import DataError
-    from agents.monitor.report import format_report
-    from core.errors import ConfigError
-
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
     try:

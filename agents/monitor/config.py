@@ -1,10 +1,11 @@
 """Configurations of the control-loop performance monitor (seed 004): the analysis settings, a
 candidate secondary, and the monitor node of a scenario (``kind: monitor``).
 
-Only pydantic here (scenarios import this module; the numerics stay out of their import).
+Only pydantic and the column names here (scenarios import this module; the numerics stay out
+of their import).
 
 A monitor node assesses one loop from its routine data over a sliding window, live on the bus
-(:mod:`agents.monitor.node`)::
+(:mod:`agents.monitor.behaviour`)::
 
     temperature_monitor:
       kind: monitor
@@ -15,7 +16,7 @@ A monitor node assesses one loop from its routine data over a sliding window, li
       period: 500.0                      # an assessment every 500 time units, and at the end
       analysis: {max_order: 30}          # MonitorConfig
 
-Columns are named as ``wncs assess RUN_DIR`` names them (:mod:`agents.monitor.run_data`):
+Columns are named as ``wncs assess RUN_DIR`` names them (:mod:`agents.monitor.columns`):
 ``LOOP`` (a loop's delivered measurement), ``LOOP.sp`` (its set point), ``PLANT.STATE`` (a plant
 state on its monitoring grid).
 """
@@ -25,6 +26,8 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from agents.monitor.columns import resolve_column
 
 __all__ = [
     "SecondarySpec",
@@ -219,8 +222,6 @@ class MonitorNodeConfig(BaseModel):
     def check(self, scenario: Any, name: str) -> None:
         """Refuse names that are not in ``scenario`` (``ValueError`` naming the field, e.g.
         ``nodes.mon.secondaries[0].name: 'reactor.Tj' is not a column of this run ...``)."""
-        from agents.monitor.run_data import resolve_column
-
         at = f"nodes.{name}"
         if self.loop not in scenario.loops:
             raise ValueError(

@@ -1,25 +1,14 @@
 """Routine data of a loop from a run's messages, live on the bus or from a recorded run (seed 004).
 
-The monitor node (:mod:`agents.monitor.node`) and ``wncs assess RUN_DIR`` both build their series
-with :class:`RunSeries` from the same messages in the same order (the node as it handles them, the
-command from ``history.sqlite``, where the historian stored them in that order), so they assess
-exactly the same numbers.
+The monitor node (:mod:`agents.monitor.behaviour`) and ``wncs assess RUN_DIR`` both build their
+series with :class:`RunSeries` from the same messages in the same order (the node as it handles
+them, the command from ``history.sqlite``, where the historian stored them in that order:
+:mod:`agents.monitor.run_files`), so they assess exactly the same numbers. The columns are named
+as in :mod:`agents.monitor.columns`: ``LOOP``, ``LOOP.sp``, ``PLANT.STATE``.
 
-Columns of a run
-----------------
-``LOOP``
-    The samples delivered to loop ``LOOP``'s controller (``loop/<l>/meas``): what the controller
-    saw, measurement noise included. The primary is always a loop; its samples define the rows.
-``LOOP.sp``
-    The loop's set point in force when each primary sample was handled (from operations or from
-    the coordination agent, :meth:`runtime.scenario.Scenario.setpoint_key`).
-``PLANT.STATE``
-    A plant state on its monitoring grid (``plant/<p>/state``: the true value, no measurement
-    noise), at the grid point at or before each primary sample's sampling instant (with the grid
-    at the sampling instants, as in ``scenarios/cascade_routine.yaml``, its value at that instant).
-
-A secondary loop's column ``LOOP`` holds, at each primary sample, that loop's latest sample taken
-at or before the primary's sampling instant.
+Bus-free and file-free: messages come in through :meth:`RunSeries.feed` (or, from a direct run's
+record in memory, :func:`feed_run_record`); reading a run directory is
+:mod:`agents.monitor.run_files`'s (the application layer).
 
 Window
 ------
@@ -37,80 +26,19 @@ import bisect
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel
 
-from agents.monitor.assess import AssessmentResult, assess, rows_needed
-from agents.monitor.config import MonitorConfig, SecondarySpec
+from agents.monitor.assess import AssessmentResult, assess
+from agents.monitor.columns import SP_SUFFIX, Column, resolve_column
+from agents.monitor.config import MonitorConfig, SecondarySpec, rows_needed
 from agents.monitor.errors import DataError
-from bus_schemas import PlantState, Sample, Setpoint, codec, keys
+from bus_schemas import PlantState, Sample, Setpoint, keys
 
-__all__ = [
-    "Column",
-    "resolve_column",
-    "WindowInfo",
-    "RunSeries",
-    "assess_series",
-    "feed_history",
-    "feed_record",
-    "feed_run_record",
-]
-
-SP_SUFFIX = ".sp"
-
-
-@dataclass(frozen=True)
-class Column:
-    """A column of a run: a loop's delivered samples, its set point, or a plant state."""
-
-    name: str
-    kind: Literal["meas", "sp", "state"]
-    loop: str | None = None
-    plant: str | None = None
-    state: str | None = None
-
-
-def _plant_states(scenario: Any) -> dict[str, tuple[str, ...]]:
-    return {
-        n: tuple(cfg.build().state_names)
-        for n, cfg in sorted(scenario.nodes.items())
-        if cfg.kind == "plant"
-    }
-
-
-def resolve_column(scenario: Any, name: str) -> Column:
-    """The column ``name`` of a run of ``scenario`` (module docstring).
-
-    Raises
-    ------
-    ValueError
-        Unknown or ambiguous name, listing the run's columns.
-    """
-    loops = scenario.loops
-    plants = _plant_states(scenario)
-    hits: list[Column] = []
-    if name in loops:
-        hits.append(Column(name, "meas", loop=name))
-    head, dot, tail = name.partition(".")
-    if dot:
-        if tail == SP_SUFFIX[1:] and head in loops:
-            hits.append(Column(name, "sp", loop=head))
-        if tail in plants.get(head, ()):
-            hits.append(Column(name, "state", plant=head, state=tail))
-    if len(hits) == 1:
-        return hits[0]
-    if hits:
-        raise ValueError(f"{name!r} is ambiguous: both a loop's set point and a plant state")
-    states = ", ".join(f"{p}.{s}" for p, names in plants.items() for s in names)
-    raise ValueError(
-        f"{name!r} is not a column of this run; columns are LOOP (samples delivered to the "
-        f"loop's controller), LOOP.sp (its set point) and PLANT.STATE (a plant state on its "
-        f"monitoring grid): loops {sorted(loops)}, plant states {states}"
-    )
+__all__ = ["WindowInfo", "RunSeries", "assess_series", "feed_run_record"]
 
 
 class _Held:
@@ -421,46 +349,10 @@ def assess_series(
     return result, info
 
 
-def _validated(body_type: type[BaseModel], raw: bytes) -> BaseModel | None:
-    try:
-        return body_type.model_validate(codec.unpack_mapping(raw))
-    except (ValidationError, ValueError):
-        return None  # the node would have dropped it as invalid, too
-
-
-def feed_history(path: str | Path, series: RunSeries, *, until: int) -> int:
-    """Feed ``series`` from a run's ``history.sqlite``: the messages of its keys stamped before
-    ``until`` (ticks), in the order the historian handled them. Returns the messages fed."""
-    from runtime.history import connect
-
-    subs = dict(series.subscriptions())
-    marks = ",".join("?" * len(subs))
-    fed = 0
-    with connect(path) as conn:
-        rows = conn.execute(
-            f"SELECT round, t, key, body FROM messages WHERE t < ? AND key IN ({marks}) "
-            "ORDER BY id",
-            (until, *subs),
-        )
-        for rnd, t, key, raw in rows:
-            body = _validated(subs[key], raw)
-            if body is not None:
-                series.feed(key, rnd, t, body)
-                fed += 1
-    return fed
-
-
-def feed_record(path: str | Path, series: RunSeries, *, until: int) -> int:
-    """Feed ``series`` from a direct-engine run's ``record.json`` (no bus, no rounds: the time
-    stands for the round, so a set point applies to the samples handled at its instant).
-    Returns the messages fed."""
-    from runtime.report import load_saved_record
-
-    return feed_run_record(load_saved_record(Path(path).parent), series, until=until)
-
-
 def feed_run_record(rec: Any, series: RunSeries, *, until: int) -> int:
-    """:func:`feed_record` on a :class:`core.record.RunRecord` in memory (a direct run)."""
+    """Feed ``series`` from a direct run's :class:`core.record.RunRecord` in memory: its messages
+    stamped before ``until`` (ticks), by time (no bus, no rounds: the time stands for the round, so
+    a set point applies to the samples handled at its instant). Returns the messages fed."""
     events: list[tuple[int, int, str, BaseModel]] = []
     subs = dict(series.subscriptions())
     for name, plant in rec.plants.items():

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 import zenoh
 
+from agents.monitor.columns import resolve_column
 from agents.monitor.errors import DataError
-from agents.monitor.run_data import RunSeries, assess_series, resolve_column
+from agents.monitor.run_data import RunSeries, assess_series
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, codec, keys
 from bus_schemas.bodies import PlantState, Sample, Setpoint
 from core.errors import ConfigError, SchemaError
