@@ -2,8 +2,9 @@
 
 To add a law: a frozen pydantic config with ``type: Literal["name"]``, a class with
 ``reset()``, ``step(t, y, r) -> u`` and (if it takes a steady-state feedforward)
-``set_feedforward(u_bar)``; register both in :data:`LAWS` and add the config to
-:data:`LawConfig`. Nodes and the direct engine use only this module, never a law by name.
+``set_feedforward(u_bar)``; add one :class:`~core.registry.Kind` entry to :data:`LAWS` (the
+scenario's :data:`LawConfig` union is made from it). Nodes and the direct engine use only this
+module, never a law by name.
 
 A **multi-loop** law (class attribute ``multi_loop = True``) controls several loops at once (a
 controller node with ``loops: [a, b, ...]``): its ``step(t, y, r) -> u`` takes the latest
@@ -23,9 +24,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import Any
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel
 
 from controllers.cascade_law import PIPCascadeLaw, PIPCascadeLawConfig
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
@@ -33,6 +34,7 @@ from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
 from controllers.pi import PI, PIConfig
 from controllers.qdc_law import QDCLaw, QDCLawConfig
+from core.registry import Kind, Registry
 
 __all__ = [
     "LAWS",
@@ -48,26 +50,22 @@ __all__ = [
     "uses_feedforward",
 ]
 
-LAWS: dict[str, type[Any]] = {
-    "pi": PI,  # seed 000: PI with steady-state feedforward
-    "nlpi": NonlinearPI,  # seed 002: feedback-linearizing 2-DOF PI
-    "pi2dof": TwoDofPI,  # seed 002: fixed-gain 2-DOF PI (the baseline)
-    "stnlpi": SelfTuningNLPI,  # seed 002: EW-RLS self-tuning non-linear PI
-    "mrac": MultiLoopMRAC,  # seed 003: model-reference adaptive control (multi-loop)
-    "qdc": QDCLaw,  # seed 001: a unit's quasi-decentralized local control system (multi-loop)
-    "pip_cascade": PIPCascadeLaw,  # seed 004: PI-P cascade, primary and secondary (multi-loop)
-}
+LAWS: Registry[Any] = Registry(
+    "law",
+    tag="type",
+    kinds=[
+        Kind("pi", PIConfig, PI, "seed 000: PI with steady-state feedforward"),
+        Kind("nlpi", NLPIConfig, NonlinearPI, "seed 002: feedback-linearizing 2-DOF PI"),
+        Kind("pi2dof", PI2DOFConfig, TwoDofPI, "seed 002: fixed-gain 2-DOF PI (the baseline)"),
+        Kind("stnlpi", STNLPIConfig, SelfTuningNLPI, "seed 002: EW-RLS self-tuning NLPI"),
+        Kind("mrac", MRACConfig, MultiLoopMRAC, "seed 003: model-reference adaptive (multi-loop)"),
+        Kind("qdc", QDCLawConfig, QDCLaw, "seed 001: a unit's quasi-decentralized control"),
+        Kind("pip_cascade", PIPCascadeLawConfig, PIPCascadeLaw, "seed 004: PI-P cascade"),
+    ],
+)
+"""Every control law: its ``type:`` name, its configuration, its class (the ``build``)."""
 
-LawConfig = Annotated[
-    PIConfig
-    | NLPIConfig
-    | PI2DOFConfig
-    | STNLPIConfig
-    | MRACConfig
-    | QDCLawConfig
-    | PIPCascadeLawConfig,
-    Field(discriminator="type"),
-]
+LawConfig = LAWS.union()
 """The discriminated union of every law's configuration (``PIConfig | OtherConfig | ...``)."""
 
 
@@ -89,19 +87,23 @@ class MultiLoopContext:
     receives: tuple[str, ...] = ()
 
 
+def _law_class(config: BaseModel) -> Any:
+    return LAWS.of(config).build
+
+
 def accepts_actuator_only_loops(config: BaseModel) -> bool:
     """Whether the law of ``config`` accepts loops without a sensor (``sensor: null``)."""
-    return bool(getattr(LAWS[config.type], "actuator_only_loops", False))  # type: ignore[attr-defined]
+    return bool(getattr(_law_class(config), "actuator_only_loops", False))
 
 
 def accepts_measurement_only_loops(config: BaseModel) -> bool:
     """Whether the law of ``config`` accepts loops without an actuator (``actuator: null``)."""
-    return bool(getattr(LAWS[config.type], "measurement_only_loops", False))  # type: ignore[attr-defined]
+    return bool(getattr(_law_class(config), "measurement_only_loops", False))
 
 
 def exchanges_estimates(config: BaseModel) -> bool:
     """Whether the law of ``config`` sends and receives on links (``transmit``/``receive``)."""
-    cls = LAWS[config.type]  # type: ignore[attr-defined]
+    cls = _law_class(config)
     return hasattr(cls, "transmit") and hasattr(cls, "receive")
 
 
@@ -112,12 +114,12 @@ def uses_feedforward(config: BaseModel) -> bool:
 
 def is_multi_loop(config: BaseModel) -> bool:
     """Whether the law of ``config`` controls several loops at once (``loops:``)."""
-    return bool(getattr(LAWS[config.type], "multi_loop", False))  # type: ignore[attr-defined]
+    return bool(getattr(_law_class(config), "multi_loop", False))
 
 
 def check_loops(config: BaseModel, loops: Sequence[str]) -> None:
     """Refuse a multi-loop law's loop list that does not fit it (``ValueError`` with the reason)."""
-    check = getattr(LAWS[config.type], "check_loops", None)  # type: ignore[attr-defined]
+    check = getattr(_law_class(config), "check_loops", None)
     if check is not None:
         check(config, loops)
 
@@ -136,7 +138,7 @@ def build_law(config: BaseModel, *, u_bar: float, plant: Any, tau_s: float) -> A
     tau_s : float
         The loop's nominal sampling period (laws must still use the actual time between samples).
     """
-    cls = LAWS[config.type]  # type: ignore[attr-defined]
+    cls = _law_class(config)
     if hasattr(cls, "from_config"):
         return cls.from_config(config, u_bar=u_bar, plant=plant, tau_s=tau_s)
     return cls(config, u_bar=u_bar)
@@ -166,7 +168,7 @@ def build_multi_loop_law(
         The loops' signals and the controller's links
         (:meth:`runtime.scenario.Scenario.multi_loop_context`).
     """
-    cls = LAWS[config.type]  # type: ignore[attr-defined]
+    cls = _law_class(config)
     if not getattr(cls, "multi_loop", False):
         raise ValueError(f"law {config.type!r} controls one loop; use build_law")  # type: ignore[attr-defined]
     if hasattr(cls, "from_config"):

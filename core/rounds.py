@@ -73,9 +73,7 @@ class RoundPlanner:
                 published[key] = published.get(key, 0) + n
         self.advance_with(published, {d.node: d.next_time for d in dones.values()})
 
-    def advance_with(
-        self, published: dict[str, int], next_times: Mapping[str, int | None]
-    ) -> None:
+    def advance_with(self, published: dict[str, int], next_times: Mapping[str, int | None]) -> None:
         """Move on, given the round's published counts per key and each participant's next
         timer (``None``: none): a microstep if anything was published, else next-event
         advance."""

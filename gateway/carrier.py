@@ -55,14 +55,14 @@ class PathCarrier:
     def __init__(self, scenario: Any, node: str) -> None:
         cfg = scenario.nodes[node]
         self.node = node
-        self.kind = cfg.kind
         self.loops = {n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == node}
         self.links = {n: lk for n, lk in sorted(scenario.links.items()) if lk.network == node}
         self._rng: dict[tuple[str, str], np.random.Generator] = {}
         self._const: dict[tuple[str, str], int] = {}
         self.routes: dict[tuple[str, str], Route | None] = {}
         topology = None
-        if cfg.kind == "gateway":
+        self.wireless = scenario.is_wireless(node)
+        if self.wireless:
             topology = Topology(cfg.topology)
             gateway = cfg.gateway_node()
         paths = [(n, d) for n in self.loops for d in (SENSOR, ACTUATOR)]
@@ -120,7 +120,7 @@ class PathCarrier:
                 ((to_ticks(e.t), i, e.event) for i, e in enumerate(cfg.events)),
                 key=lambda x: (x[0], x[1]),
             )
-            if cfg.kind == "gateway"
+            if self.wireless
             else []
         )
 
@@ -256,10 +256,9 @@ class PathCarrier:
 def path_hops(scenario: Any) -> dict[str, int]:
     """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario."""
     out: dict[str, int] = {}
-    for name, cfg in sorted(scenario.nodes.items()):
-        if cfg.kind in ("network", "gateway"):
-            carrier = PathCarrier(scenario, name)
-            out.update({loop: carrier.hops(loop) for loop in carrier.loops})
+    for name in scenario.carriers():
+        carrier = PathCarrier(scenario, name)
+        out.update({loop: carrier.hops(loop) for loop in carrier.loops})
     return out
 
 

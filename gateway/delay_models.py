@@ -52,11 +52,12 @@ other. :meth:`TDMADelay.mean_attempt` assumes a uniformly random phase (mean wai
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from core.registry import Kind, Registry
 from core.time import TICKS_PER_UNIT, to_ticks
 
 __all__ = [
@@ -65,6 +66,7 @@ __all__ = [
     "ExponentialDelay",
     "TDMADelay",
     "DelayModel",
+    "DELAY_MODELS",
     "hop_success_probability",
     "expected_attempts",
     "expected_attempts_delivered",
@@ -232,8 +234,18 @@ class TDMADelay(BaseModel):
         return self.mean_attempt() + extra * frame_t / TICKS_PER_UNIT
 
 
-DelayModel = Annotated[
-    ConstantDelay | UniformDelay | ExponentialDelay | TDMADelay,
-    Field(discriminator="type"),
-]
+DELAY_MODELS: Registry[BaseModel] = Registry(
+    "delay model",
+    tag="type",
+    kinds=[  # no build: a delay model's configuration is the model
+        Kind("constant", ConstantDelay),
+        Kind("uniform", UniformDelay),
+        Kind("exponential", ExponentialDelay),
+        Kind("tdma", TDMADelay),
+    ],
+)
+"""Every per-hop delay model by its ``type:``; to add one, a class with ``hop_ticks`` and
+``mean_hop`` (as above) and an entry here."""
+
+DelayModel = DELAY_MODELS.union()
 """A per-hop delay model, chosen by its ``type`` field."""

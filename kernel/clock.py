@@ -47,6 +47,7 @@ class ClockSpec:
     max_microsteps: int
     may_drop: frozenset[str] = frozenset()
 
+
 log = logging.getLogger(__name__)
 
 
@@ -93,9 +94,7 @@ class ClockRunner:
         self.spec = spec
         self.interpret = interpret
         self.participants = spec.participants
-        self.planner = RoundPlanner(
-            self.participants, spec.end, max_microsteps=spec.max_microsteps
-        )
+        self.planner = RoundPlanner(self.participants, spec.end, max_microsteps=spec.max_microsteps)
         self.pacer = Pacer(realtime) if realtime else None
         self._queue: queue.Queue[tuple[str, str, bytes | zenoh.SampleKind]] = queue.Queue()
         self._alive: set[str] = set()
@@ -241,8 +240,7 @@ class ClockRunner:
             if item is None:
                 missing = sorted(self.participants - self._alive)
                 raise NodeFault(
-                    f"nodes {missing} did not come alive within "
-                    f"{self.spec.startup_timeout_s} s"
+                    f"nodes {missing} did not come alive within {self.spec.startup_timeout_s} s"
                 )
             if item[0] == "cancel":
                 raise NodeFault(item[1])

@@ -240,9 +240,7 @@ class BusNode:
 
     def _collect(self, tick: Tick) -> list[tuple[str, RawEnvelope]]:
         prev = tick.round - 1
-        need = {
-            k: n for k, n in tick.expected.items() if n > 0 and self.behaviour.listens_to(k)
-        }
+        need = {k: n for k, n in tick.expected.items() if n > 0 and self.behaviour.listens_to(k)}
         self._collected = False
         deadline = time.monotonic() + self._timeout
         while True:
@@ -312,4 +310,3 @@ class BusNode:
         )
         self._seq += 1
         pub.put(payload)
-

@@ -42,7 +42,7 @@ less (as ``y3`` in :data:`~plants.cascade_process.EXAMPLE_3`).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 import control
@@ -132,7 +132,7 @@ class CascadeCT:
         """Time derivative of the state (module docstring) under input ``(u,)``."""
         return np.array(self.rhs_tuple(t, tuple(x.tolist()), tuple(u.tolist())))
 
-    def rhs_tuple(self, t: float, x: tuple[float, ...], u: tuple[float, ...]) -> tuple[float, ...]:
+    def rhs_tuple(self, t: float, x: Sequence[float], u: Sequence[float]) -> tuple[float, ...]:
         """:meth:`rhs` on plain floats (what the fixed-step integrator calls)."""
         p = self.params
         n = self._n

@@ -57,7 +57,7 @@ tank cannot drain below empty: a documented guard, inactive in every scenario we
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import control
 import numpy as np
@@ -105,7 +105,7 @@ class JCSTR:
         return np.array(self.rhs_tuple(t, tuple(x.tolist()), tuple(u.tolist())))
 
     def rhs_tuple(
-        self, t: float, x: tuple[float, ...], u: tuple[float, ...]
+        self, t: float, x: Sequence[float], u: Sequence[float]
     ) -> tuple[float, float, float]:
         """:meth:`rhs` on plain floats (what the fixed-step integrator calls)."""
         p = self.params

@@ -37,6 +37,7 @@ Time in hours (the thesis's ``T = 0.1 h``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -162,7 +163,7 @@ class PerturbedReduced:
         return (out[0], out[1])
 
     # -- dynamics -------------------------------------------------------------------------------
-    def rhs_tuple(self, t: float, x: tuple[float, ...], u: tuple[float, ...]) -> tuple[float, ...]:
+    def rhs_tuple(self, t: float, x: Sequence[float], u: Sequence[float]) -> tuple[float, ...]:
         """``A(t) x + B(t) u + w(t)`` on plain floats (what the fixed-step integrator calls)."""
         a, b = self._ab(t)
         w1, w2 = self.disturbance(t)

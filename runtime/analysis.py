@@ -54,10 +54,10 @@ def parse_delays(text: str, loops: Any) -> dict[str, float]:
 def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
     """The paths as the scenario's networks would first propose them."""
     paths: dict[str, dict[str, Any]] = {}
-    for name, node in sorted(scenario.nodes.items()):
-        if node.kind == "gateway":
+    for name in scenario.carriers():
+        if scenario.is_wireless(name):
             paths.update(PathCarrier(scenario, name).configuration(0))
-        elif node.kind == "network":
+        else:
             for loop, lp in scenario.loops.items():
                 if lp.network == name:
                     d = lp.tau_d + lp.tau_a

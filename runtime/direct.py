@@ -1,63 +1,40 @@
 """The ``direct`` engine: a scenario's nodes run in one process, no bus (DESIGN section 3).
 
-:data:`BEHAVIOURS` says which behaviour runs a node of each kind (the scenario's ``kind:``);
-:func:`behaviour_of` builds one, for every engine: the bus engines put it on the kernel
-(:mod:`runtime.nodes`), :func:`simulate` runs them all on the
+:data:`runtime.scenario.NODE_KINDS` says how to build the behaviour of a node of each kind (the
+scenario's ``kind:``); :func:`behaviour_of` builds one, for every engine: the bus engines put it
+on the kernel (:mod:`runtime.nodes`), :func:`simulate` runs them all on the
 :class:`~runtime.engine.DirectEngine`, round by round as the clock would, so its traces,
 decisions and assignments are those of the bus engines, bit for bit, for every scenario:
 plants, controllers, networks, the coordination agent and the monitor. The record is built from
 the messages in the historian's order by the same :class:`~runtime.records.RecordBuilder` that
 rebuilds a bus run's record from its history.
 
-The coordination agent is handed a simulator of its loops (:mod:`runtime.agent_model`) that
-runs on this same engine.
+The coordination agent is handed a simulator of its loops (:mod:`agents.wncsca.trials`) that
+runs on this same engine: :func:`simulate` itself.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
-from agents.monitor.behaviour import MonitorBehaviour
-from agents.operator.behaviour import OperatorBehaviour
-from agents.wncsca.behaviour import WncscaBehaviour
+from agents.wncsca import trials
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
 from agents.wncsca.model import LoopModel
-from controllers.behaviour import ControllerBehaviour
 from core.behaviour import Behaviour
 from core.record import RunRecord
 from core.time import to_ticks
-from gateway.behaviour import NetworkBehaviour
-from plants.behaviour import PlantBehaviour
-from runtime import agent_model
 from runtime.engine import DirectEngine, Message
 from runtime.records import RecordBuilder
-from runtime.scenario import Scenario
+from runtime.scenario import NODE_KINDS, Scenario
 
 __all__ = [
-    "BEHAVIOURS",
     "behaviour_of",
     "check_node",
     "simulate",
     "loop_model",
     "coordinator",
 ]
-
-
-def _agent(name: str, scenario: Scenario) -> Behaviour:
-    return WncscaBehaviour(name, coordinator(scenario))
-
-
-BEHAVIOURS: dict[str, Callable[[str, Scenario], Behaviour]] = {
-    "plant": PlantBehaviour,
-    "controller": ControllerBehaviour,
-    "network": NetworkBehaviour,
-    "gateway": NetworkBehaviour,
-    "operator": OperatorBehaviour,
-    "agent": _agent,
-    "monitor": MonitorBehaviour,
-}
 
 
 def check_node(scenario: Scenario, name: str) -> None:
@@ -70,7 +47,9 @@ def check_node(scenario: Scenario, name: str) -> None:
 def behaviour_of(scenario: Scenario, name: str) -> Behaviour:
     """The behaviour of node ``name`` (``KeyError`` with the known names if there is none)."""
     check_node(scenario, name)
-    return BEHAVIOURS[scenario.nodes[name].kind](name, scenario)
+    build = NODE_KINDS.of(scenario.nodes[name]).build
+    assert build is not None  # every node kind has one
+    return build(name, scenario, simulate)
 
 
 def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
@@ -105,9 +84,9 @@ def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
 
 def loop_model(scenario: Scenario, config: WncscaConfig | None = None) -> LoopModel:
     """The coordination agent's model of ``scenario``'s loops, simulated on this engine."""
-    return agent_model.loop_model(scenario, config, simulate=simulate)
+    return trials.loop_model(scenario, config, simulate=simulate)
 
 
 def coordinator(scenario: Scenario, config: WncscaConfig | None = None) -> Coordinator:
     """The coordination agent of ``scenario``, its model simulated on this engine."""
-    return agent_model.coordinator(scenario, config, simulate=simulate)
+    return trials.coordinator(scenario, config, simulate=simulate)

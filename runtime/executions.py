@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from bus_schemas import keys
 from core.record import RunRecord
-from runtime.scenario import Scenario
+from runtime.scenario import ControllerNodeConfig, Scenario
 
 __all__ = ["Execution", "multi_loop_executions"]
 
@@ -42,8 +42,8 @@ def multi_loop_executions(scenario: Scenario, rec: RunRecord, controller: str) -
     ValueError
         If ``controller`` is not a multi-loop controller of ``scenario``.
     """
-    cfg = scenario.nodes.get(controller)
-    if cfg is None or cfg.kind != "controller" or cfg.loops is None:
+    cfg = scenario.nodes_of(ControllerNodeConfig).get(controller)
+    if cfg is None or cfg.loops is None:
         raise ValueError(f"{controller!r} is not a multi-loop controller of {scenario.name!r}")
     names = [n for n in cfg.loops if scenario.loops[n].sensor is not None]
     # (t, batch: 0 delayed / 1 zero-delay, key, position) -> sample

@@ -65,9 +65,8 @@ class RecordBuilder:
             )
         for name in sorted(scenario.links):
             rec.links[name] = LinkRecord()
-        for name, cfg in sorted(scenario.nodes.items()):
-            if cfg.kind == "plant":
-                rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
+        for name, cfg in sorted(scenario.plants().items()):
+            rec.plants[name] = PlantRecord(tuple(cfg.build().state_names))
         self.rec = rec
 
     def keeps(self, key: str) -> bool:

@@ -4,16 +4,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from agents.wncsca.plots import run_plots
 from controllers.law_plots import figures_of
 from core.record import LoopRecord, PlantRecord, RunRecord, summarize, wncsca_summary
 from core.time import to_units
 from runtime.executions import multi_loop_executions
-
-if TYPE_CHECKING:
-    from runtime.scenario import Scenario
+from runtime.scenario import ControllerNodeConfig, Scenario
 
 __all__ = [
     "SUMMARY_FILE",
@@ -145,8 +143,8 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     paths = []
-    for name, cfg in sorted(scenario.nodes.items()):
-        if cfg.kind != "controller" or cfg.loops is None:
+    for name, cfg in sorted(scenario.nodes_of(ControllerNodeConfig).items()):
+        if cfg.loops is None:
             continue
         draw = figures_of(cfg.law)
         if draw is None:

@@ -26,16 +26,20 @@ Two node names are reserved and always present: ``clock`` and ``historian``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any, Literal, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from agents.monitor.behaviour import MonitorBehaviour
 from agents.monitor.config import MonitorNodeConfig
+from agents.operator.behaviour import OperatorBehaviour
+from agents.wncsca import behaviour as wncsca_behaviour
 from agents.wncsca.config import MODES, WncscaConfig
 from bus_schemas import keys
+from controllers.behaviour import ControllerBehaviour
 from controllers.registry import (
     LawConfig,
     MultiLoopContext,
@@ -47,14 +51,23 @@ from controllers.registry import (
     is_multi_loop,
     uses_feedforward,
 )
+from core.behaviour import Behaviour
 from core.errors import ConfigError
+from core.record import RunRecord
+from core.registry import Kind, Registry
 from core.time import to_ticks
+from gateway.behaviour import NetworkBehaviour
 from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
+from plants.behaviour import PlantBehaviour
 
 __all__ = [
     "RESERVED_NODES",
+    "NODE_KINDS",
+    "NodeBuild",
+    "Simulate",
+    "plain_behaviour",
     "ClockConfig",
     "PlantNodeConfig",
     "ControllerNodeConfig",
@@ -72,6 +85,14 @@ __all__ = [
 ]
 
 RESERVED_NODES = ("clock", "historian")
+
+Simulate = Callable[["Scenario"], RunRecord]
+"""Runs a scenario to its record (:func:`runtime.direct.simulate`)."""
+
+_C = TypeVar("_C", bound=BaseModel)
+
+NodeBuild = Callable[[str, "Scenario", Simulate], Behaviour]
+"""``build(name, scenario, simulate)``: the behaviour of node ``name``."""
 
 _STRICT = ConfigDict(frozen=True, extra="forbid")
 
@@ -267,16 +288,39 @@ class OperatorNodeConfig(BaseModel):
     kind: Literal["operator"]
 
 
-NodeConfig = Annotated[
-    PlantNodeConfig
-    | ControllerNodeConfig
-    | NetworkNodeConfig
-    | GatewayNodeConfig
-    | OperatorNodeConfig
-    | WncscaConfig
-    | MonitorNodeConfig,
-    Field(discriminator="kind"),
-]
+def _kind_of(config: type[BaseModel]) -> str:
+    """The ``kind:`` a node configuration class stands for (the node-kind registry's name)."""
+    return next(k.name for k in NODE_KINDS.kinds.values() if k.config is config)
+
+
+def plain_behaviour(cls: Callable[[str, Any], Behaviour]) -> NodeBuild:
+    """The build of a node kind whose behaviour needs nothing but its name and the scenario."""
+
+    def build(name: str, scenario: Scenario, simulate: Simulate) -> Behaviour:
+        return cls(name, scenario)
+
+    return build
+
+
+NODE_KINDS: Registry[Behaviour] = Registry(
+    "node kind",
+    tag="kind",
+    kinds=[
+        Kind("plant", PlantNodeConfig, plain_behaviour(PlantBehaviour)),
+        Kind("controller", ControllerNodeConfig, plain_behaviour(ControllerBehaviour)),
+        Kind("network", NetworkNodeConfig, plain_behaviour(NetworkBehaviour)),
+        Kind("gateway", GatewayNodeConfig, plain_behaviour(NetworkBehaviour)),
+        Kind("operator", OperatorNodeConfig, plain_behaviour(OperatorBehaviour)),
+        Kind("agent", WncscaConfig, wncsca_behaviour.build, "the coordination agent"),
+        Kind("monitor", MonitorNodeConfig, plain_behaviour(MonitorBehaviour)),
+    ],
+)
+"""Every node kind: its ``kind:``, its configuration, and ``build(name, scenario, simulate)``:
+the behaviour every engine runs (``simulate`` runs a scenario on the direct engine, for nodes
+that simulate, as the coordination agent does)."""
+
+NodeConfig = NODE_KINDS.union()
+"""A node's configuration, chosen by its ``kind`` field."""
 
 
 class LoopConfig(BaseModel):
@@ -458,16 +502,17 @@ class Scenario(BaseModel):
 
     @model_validator(mode="after")
     def _check_graph(self) -> Scenario:
-        def node_of(kind: str, name: str, where: str) -> Any:
+        def node_of(config: type[BaseModel], name: str, where: str) -> Any:
             node = self.nodes.get(name)
             if node is None:
                 raise ValueError(f"{where}: unknown node {name!r} (nodes: {sorted(self.nodes)})")
-            if node.kind != kind:
-                raise ValueError(f"{where}: node {name!r} is a {node.kind}, expected a {kind}")
+            if not isinstance(node, config):
+                expected = _kind_of(config)
+                raise ValueError(f"{where}: node {name!r} is a {node.kind}, expected a {expected}")
             return node
 
         for name, node in self.nodes.items():
-            if node.kind != "controller" or node.loops is None:
+            if not isinstance(node, ControllerNodeConfig) or node.loops is None:
                 continue
             for i, lname in enumerate(node.loops):
                 if lname not in self.loops:
@@ -478,9 +523,9 @@ class Scenario(BaseModel):
         controlled: dict[str, str] = {}
         for lname, loop in self.loops.items():
             at = f"loops.{lname}"
-            plant_cfg = node_of("plant", loop.plant, f"{at}.plant")
+            plant_cfg = node_of(PlantNodeConfig, loop.plant, f"{at}.plant")
             plant = plant_cfg.build()
-            ctrl = node_of("controller", loop.controller, f"{at}.controller")
+            ctrl = node_of(ControllerNodeConfig, loop.controller, f"{at}.controller")
             if loop.sensor is None:
                 if ctrl.loops is None or not accepts_actuator_only_loops(ctrl.law):
                     raise ValueError(
@@ -516,7 +561,7 @@ class Scenario(BaseModel):
                 )
             controlled[loop.controller] = lname
             net = self.nodes.get(loop.network)
-            if net is not None and net.kind == "gateway":
+            if isinstance(net, GatewayNodeConfig):
                 topo_nodes = net.topology.nodes
                 if loop.sensor is not None and loop.sensor_node not in topo_nodes:
                     raise ValueError(
@@ -534,13 +579,13 @@ class Scenario(BaseModel):
                         "topology; leave tau_d at 0"
                     )
             else:
-                node_of("network", loop.network, f"{at}.network")
+                node_of(NetworkNodeConfig, loop.network, f"{at}.network")
                 if loop.sensor_node is not None or loop.actuator_node is not None:
                     raise ValueError(f"{at}.sensor_node: only loops over a gateway name WSN nodes")
             if loop.tau_s is not None and to_ticks(loop.tau_s) < 1:
                 raise ValueError(f"{at}.tau_s: {loop.tau_s} is shorter than one tick")
         for name, node in self.nodes.items():
-            if node.kind != "controller":
+            if not isinstance(node, ControllerNodeConfig):
                 continue
             if node.loops is None:
                 if name not in controlled:
@@ -575,7 +620,7 @@ class Scenario(BaseModel):
         for i, name in enumerate(self.clock.may_drop):
             if name not in self.nodes:
                 raise ValueError(f"clock.may_drop[{i}]: unknown node {name!r}")
-        operators = [n for n, node in self.nodes.items() if node.kind == "operator"]
+        operators = list(self.nodes_of(OperatorNodeConfig))
         if len(operators) > 1:
             raise ValueError(f"nodes: at most one operator node, found {operators}")
         if self.setpoints and not operators:
@@ -584,7 +629,7 @@ class Scenario(BaseModel):
             raise ValueError("disturbances: a schedule needs an operator node to publish it")
         self._check_agent()
         for name, node in self.nodes.items():
-            if node.kind == "monitor":
+            if isinstance(node, MonitorNodeConfig):
                 node.check(self, name)  # the loop and columns it assesses exist
                 if self.loops[node.loop].sensor is None:
                     raise ValueError(
@@ -593,7 +638,7 @@ class Scenario(BaseModel):
         moved = {(lp.plant, lp.actuator) for lp in self.loops.values() if lp.actuator is not None}
         for i, dist in enumerate(self.disturbances):
             at = f"disturbances[{i}]"
-            plant_cfg = node_of("plant", dist.plant, f"{at}.plant")
+            plant_cfg = node_of(PlantNodeConfig, dist.plant, f"{at}.plant")
             inputs = plant_cfg.build().input_names
             if dist.input not in inputs:
                 raise ValueError(
@@ -659,8 +704,8 @@ class Scenario(BaseModel):
                 raise ValueError(f"{at}: a loop has that name; name links and loops apart")
             for field, node in (("from", link.from_), ("to", link.to)):
                 cfg = self.nodes.get(node)
-                if cfg is None or cfg.kind != "controller":
-                    known = sorted(n for n, c in self.nodes.items() if c.kind == "controller")
+                if not isinstance(cfg, ControllerNodeConfig):
+                    known = sorted(self.nodes_of(ControllerNodeConfig))
                     raise ValueError(
                         f"{at}.{field}: {node!r} is not a controller node (controllers: {known})"
                     )
@@ -677,7 +722,7 @@ class Scenario(BaseModel):
             if link.from_ == link.to:
                 raise ValueError(f"{at}.to: a link joins two different controllers")
             net = self.nodes.get(link.network)
-            if net is not None and net.kind == "gateway":
+            if isinstance(net, GatewayNodeConfig):
                 topo_nodes = net.topology.nodes
                 for field, node in (
                     ("source_node", link.source_node),
@@ -696,7 +741,7 @@ class Scenario(BaseModel):
                         "leave delay at 0"
                     )
             else:
-                if net is None or net.kind != "network":
+                if not isinstance(net, NetworkNodeConfig):
                     raise ValueError(
                         f"{at}.network: {link.network!r} is not a network or gateway node"
                     )
@@ -709,7 +754,7 @@ class Scenario(BaseModel):
         """Build every multi-loop law once, so that refusals that depend on the plant (a design
         the plant's linearization does not admit) name the node before anything starts."""
         for name, node in self.nodes.items():
-            if node.kind != "controller" or node.loops is None:
+            if not isinstance(node, ControllerNodeConfig) or node.loops is None:
                 continue
             try:
                 self.multi_loop_law(name)
@@ -754,7 +799,7 @@ class Scenario(BaseModel):
 
     def _check_agent(self) -> None:
         """At most one coordination agent; every loop it names must exist."""
-        agents = [n for n, node in self.nodes.items() if node.kind == "agent"]
+        agents = list(self.nodes_of(WncscaConfig))
         if len(agents) > 1:
             raise ValueError(f"nodes: at most one agent node, found {agents}")
         for name in agents:
@@ -803,9 +848,26 @@ class Scenario(BaseModel):
                     raise ValueError(f"{where}: feedforward of loop {lname!r}: {err}") from err
 
     # -- derived views used by nodes and engines --------------------------------------------------
+    def nodes_of(self, config: type[_C]) -> dict[str, _C]:
+        """The nodes configured by ``config`` (a node kind's configuration class), by name."""
+        return {n: c for n, c in self.nodes.items() if isinstance(c, config)}
+
+    def plants(self) -> dict[str, PlantNodeConfig]:
+        """The plant nodes by name."""
+        return self.nodes_of(PlantNodeConfig)
+
+    def carriers(self) -> list[str]:
+        """The nodes that carry loops: wired networks and WSN gateways, sorted."""
+        return sorted(self.nodes_of(NetworkNodeConfig) | self.nodes_of(GatewayNodeConfig))
+
+    def is_wireless(self, network: str) -> bool:
+        """Whether ``network`` routes its loops over a WSN topology (a gateway), rather than a
+        wired network of constant delays."""
+        return isinstance(self.nodes.get(network), GatewayNodeConfig)
+
     def agent_node(self) -> str | None:
         """The coordination agent's node name, or ``None``."""
-        return next((n for n, node in sorted(self.nodes.items()) if node.kind == "agent"), None)
+        return next(iter(sorted(self.nodes_of(WncscaConfig))), None)
 
     def setpoint_key(self, loop: str) -> str:
         """Where controllers read loop ``loop``'s set points: from operations

@@ -30,6 +30,20 @@ def _global_state_unchanged():
     assert np.get_printoptions() == opts
 
 
+@pytest.fixture
+def stand_in(monkeypatch):
+    """``stand_in(kind, cls)``: nodes of ``kind`` run behaviour class ``cls(name, scenario)``
+    instead of their own, for this test (a registry entry swapped, as a new kind would be)."""
+    from runtime.scenario import NODE_KINDS, plain_behaviour
+
+    def swap(kind: str, cls) -> None:
+        monkeypatch.setitem(
+            NODE_KINDS.kinds, kind, NODE_KINDS[kind].with_build(plain_behaviour(cls))
+        )
+
+    return swap
+
+
 def load_yaml(path: Path) -> dict[str, Any]:
     return yaml.safe_load(path.read_text())
 

@@ -184,3 +184,68 @@ def test_the_rules_catch_a_forbidden_import(module, source, why):
 
 def test_a_lazy_matplotlib_import_is_allowed():
     assert violations(imports_of("agents.wncsca.plots", "def f():\n    import matplotlib\n")) == []
+
+
+# -- dispatch through registries -------------------------------------------------------------
+# Generic code asks a registry (core.registry) or a scenario's typed accessors (nodes_of,
+# carriers, is_wireless), never compares a node kind's, law's or plant model's name itself.
+# Where such a name means something else, the use is listed with why.
+NAME_COMPARES_ALLOWED = {
+    # a WSN topology's own node roles (gateway, relay, sensor), not node kinds
+    ("gateway.topology", "gateway"),
+    ("runtime.scenario", "gateway"),
+}
+TAG_FIELDS = ("kind", "type", "model")
+
+
+def _registered_names() -> set[str]:
+    names: set[str] = set()
+    for registry in ("runtime/scenario.py", "controllers/registry.py", "plants/registry.py"):
+        tree = ast.parse((ROOT / registry).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "Kind":
+                first = node.args[0] if node.args else None
+                if isinstance(first, ast.Constant) and isinstance(first.value, str):
+                    names.add(first.value)
+    return names
+
+
+def name_compares(module: str, source: str, names: set[str]) -> list[str]:
+    """``x.kind == "plant"``, ``cfg.type != "pi"``, ``node.kind in ("network", ...)``."""
+    found: list[str] = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.Compare):
+            continue
+        sides = [node.left, *node.comparators]
+        tagged = any(isinstance(s, ast.Attribute) and s.attr in TAG_FIELDS for s in sides)
+        if not tagged:
+            continue
+        for side in sides:
+            consts = side.elts if isinstance(side, ast.Tuple | ast.List | ast.Set) else [side]
+            for c in consts:
+                if isinstance(c, ast.Constant) and c.value in names:
+                    if (module, c.value) not in NAME_COMPARES_ALLOWED:
+                        found.append(f"{module}:{node.lineno}: compares a name: {c.value!r}")
+    return found
+
+
+def test_generic_code_dispatches_through_registries():
+    names = _registered_names()
+    assert {"plant", "controller", "gateway", "pi", "jcstr"} <= names  # the walk finds them
+    bad: list[str] = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            bad += name_compares(_module_name(path), path.read_text(), names)
+    assert not bad, "compare names instead of asking a registry:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        'if cfg.kind == "plant":\n    pass\n',
+        'ok = node.kind in ("network", "gateway")\n',
+        'if law.type != "pi":\n    pass\n',
+    ],
+)
+def test_the_dispatch_rule_catches_a_name_compare(source):
+    assert name_compares("runtime.records", source, _registered_names())

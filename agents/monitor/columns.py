@@ -41,11 +41,7 @@ class Column:
 
 
 def _plant_states(scenario: Any) -> dict[str, tuple[str, ...]]:
-    return {
-        n: tuple(cfg.build().state_names)
-        for n, cfg in sorted(scenario.nodes.items())
-        if cfg.kind == "plant"
-    }
+    return {n: tuple(cfg.build().state_names) for n, cfg in sorted(scenario.plants().items())}
 
 
 def resolve_column(scenario: Any, name: str) -> Column:

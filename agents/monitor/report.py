@@ -52,8 +52,7 @@ def format_report(report: dict[str, Any]) -> str:
             f"Harris index {_g(h['index'], '.3f')} +- {_g(h['std'], '.3f')} "
             f"({100 * h['confidence']:g} % interval {_g(lo, '.3f')}-{_g(hi, '.3f')}; "
             f"AR({h['order']}), minimum variance {_g(h['sigma2_mv'])}, {h['uncertainty']} "
-            "method)"
-            + (" -- above 1: estimation noise" if h.get("above_one") else "")
+            "method)" + (" -- above 1: estimation noise" if h.get("above_one") else "")
         )
     else:
         kind = f", {h['kind']}" if h.get("kind") else ""

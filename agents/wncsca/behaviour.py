@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from agents.wncsca import trials
 from agents.wncsca.coordinator import Coordinator, Negotiation
 from bus_schemas import Decision, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
@@ -23,7 +24,14 @@ from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
 from core.time import to_ticks
 
-__all__ = ["WncscaBehaviour"]
+__all__ = ["WncscaBehaviour", "build"]
+
+
+def build(name: str, scenario: Any, simulate: trials.Simulate) -> WncscaBehaviour:
+    """The agent node ``name`` of ``scenario``, its model of the loops run by ``simulate``
+    (the node kind's build: :data:`runtime.scenario.NODE_KINDS`)."""
+    config = scenario.nodes[name]
+    return WncscaBehaviour(name, trials.coordinator(scenario, config, simulate=simulate))
 
 
 class WncscaBehaviour(Behaviour):

@@ -83,6 +83,7 @@ from numpy.typing import NDArray
 
 from agents.wncsca.assignment import Assignment, Trial
 from agents.wncsca.model import LoopModel
+from controllers.pi import PIConfig
 from controllers.registry import uses_feedforward
 from core.time import TICKS_PER_UNIT, to_ticks
 
@@ -398,7 +399,7 @@ class LinearPredictor:
         self.laws: dict[str, _Law] = {}
         for n in self.loops:
             law = scenario.nodes[scenario.loops[n].controller].law
-            if law.type != "pi":
+            if not isinstance(law, PIConfig):
                 raise ValueError(
                     f"fast method: loop {n!r} uses control law {law.type!r}; only 'pi' loops "
                     "are modelled (use method 'paper')"

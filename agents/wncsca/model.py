@@ -43,7 +43,7 @@ class Evaluation:
 
 class Trials(Protocol):
     """What the agent's model simulates: its loops on wired paths under the set-point test,
-    built once from the scenario by the application (:mod:`runtime.agent_model`) and run on the
+    built once from the scenario (:class:`agents.wncsca.trials.ScenarioTrials`) and run on the
     direct engine for each trial."""
 
     @property

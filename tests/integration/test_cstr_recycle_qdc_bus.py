@@ -10,7 +10,6 @@ from pydantic import BaseModel, ConfigDict
 from bus_schemas import keys
 from core.record import summarize
 from gateway.behaviour import NetworkBehaviour
-from runtime import direct as direct_engine
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
@@ -106,9 +105,9 @@ class _NoisyNetwork(NetworkBehaviour):
         self.publish(keys.link_rx("x1"), _Raw(values=[1.0, 0.0], t_sent=-5))
 
 
-def test_malformed_estimates_are_dropped_and_change_nothing(tmp_path, monkeypatch):
+def test_malformed_estimates_are_dropped_and_change_nothing(tmp_path, stand_in):
     path = write_variant(tmp_path, QDC, "qdc.yaml", _short(0.1))
-    monkeypatch.setitem(direct_engine.BEHAVIOURS, "network", _NoisyNetwork)
+    stand_in("network", _NoisyNetwork)
     res = launch(path, tmp_path / "run", engine="threads")
     assert res.code == 0, res.error
     assert res.summary["messages"]["dropped_invalid"]["link/x1/rx"] == 3

@@ -156,18 +156,17 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
     assert n_proposals == 3  # initial, r1 down, r2 down
 
 
-def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, monkeypatch):
+def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, stand_in):
     """The launcher cancels the clock, which stops the other nodes: no node thread outlives the
     run (a daemon thread still in zenoh at interpreter exit aborts the process)."""
     from agents.operator.behaviour import OperatorBehaviour
-    from runtime import direct
 
     class Failing(OperatorBehaviour):
         def __init__(self, name, scenario) -> None:
             super().__init__(name, scenario)
             raise ValueError("boom at start")
 
-    monkeypatch.setitem(direct.BEHAVIOURS, "operator", Failing)
+    stand_in("operator", Failing)
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1
     assert "node 'operator' failed while starting: ValueError: boom at start" in res.error
@@ -176,12 +175,11 @@ def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, mo
     assert alive == []
 
 
-def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, monkeypatch):
+def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, stand_in):
     """A node that subscribes only after the clock stopped the run never sees the ``Stop``: the
     launcher aborts it (a loaded machine makes this race real)."""
     from agents.operator.behaviour import OperatorBehaviour
     from controllers.behaviour import ControllerBehaviour
-    from runtime import direct
 
     class Failing(OperatorBehaviour):
         def __init__(self, name, scenario) -> None:
@@ -196,8 +194,8 @@ def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, 
                 th.join(timeout=60)
             super().__init__(name, scenario)
 
-    monkeypatch.setitem(direct.BEHAVIOURS, "operator", Failing)
-    monkeypatch.setitem(direct.BEHAVIOURS, "controller", Slow)
+    stand_in("operator", Failing)
+    stand_in("controller", Slow)
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1 and "boom at start" in res.error
     names = set(load_scenario(BENCHMARK).participants()) | {"clock"}

@@ -18,7 +18,6 @@ from agents.operator.behaviour import OperatorBehaviour
 from agents.wncsca.timeline import format_timeline
 from bus_schemas import keys
 from gateway.behaviour import NetworkBehaviour
-from runtime import direct
 from runtime.launcher import launch
 from tests.conftest import SCENARIOS, write_variant
 
@@ -91,12 +90,12 @@ def _variant(tmp_path):
     return write_variant(tmp_path, SCENARIOS / "jcstr_wncs.yaml", "wncs_short.yaml", edit)
 
 
-def test_bad_requests_are_refused_and_change_nothing(tmp_path, monkeypatch):
+def test_bad_requests_are_refused_and_change_nothing(tmp_path, stand_in):
     scenario = _variant(tmp_path)
     clean = launch(scenario, tmp_path / "clean", engine="threads")
     assert clean.code == 0, clean.error
-    monkeypatch.setitem(direct.BEHAVIOURS, "gateway", _NoisyGateway)
-    monkeypatch.setitem(direct.BEHAVIOURS, "operator", _NoisyOperator)
+    stand_in("gateway", _NoisyGateway)
+    stand_in("operator", _NoisyOperator)
     noisy = launch(scenario, tmp_path / "noisy", engine="threads")
     assert noisy.code == 0, noisy.error
 

@@ -4,10 +4,14 @@
 by a wired path of constant delay, under the agent's set-point test: validated once, then for
 each trial only the periods, delays and step times change (a copy of the model with those fields
 replaced, no re-validation: they are checked by :meth:`agents.wncsca.model.LoopModel.evaluate`),
-and the copy runs on the direct engine (the ``simulate`` it is given:
-:func:`runtime.direct.simulate`, which builds the agent with this module, so the engine is passed
-in rather than imported). :func:`loop_model` and :func:`coordinator` hand it to the agent's
-cores; :func:`runtime.direct.loop_model` and :func:`runtime.direct.coordinator` pass the engine.
+and the copy runs on the engine it is handed (``simulate``: :func:`runtime.direct.simulate`,
+which builds the agent with this module, so the engine is passed in rather than imported).
+:func:`loop_model` and :func:`coordinator` hand it to the agent's cores; the agent's node kind
+(:func:`agents.wncsca.behaviour.build`) and :func:`runtime.direct.loop_model` pass the engine.
+
+The scenario is taken as it is given (a :class:`runtime.scenario.Scenario`; this module sits
+below the scenario layer, so it does not import it): the trial scenario is validated by the
+given scenario's own class.
 """
 
 from __future__ import annotations
@@ -15,15 +19,21 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Callable, Mapping
+from typing import Any
 
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
 from agents.wncsca.model import LoopModel
 from core.record import RunRecord
 from core.time import to_ticks, to_units
-from runtime.scenario import Scenario
 
-__all__ = ["ScenarioTrials", "loop_model", "coordinator", "agent_config"]
+__all__ = ["ScenarioTrials", "Simulate", "loop_model", "coordinator", "agent_config"]
+
+Scenario = Any
+"""A validated :class:`runtime.scenario.Scenario` (not imported: it is a layer above)."""
+
+Simulate = Callable[[Scenario], RunRecord]
+"""Runs a scenario to its record: :func:`runtime.direct.simulate`."""
 
 _NET = "wncsca_model_network"
 _OPERATOR = "wncsca_model_operator"
@@ -39,13 +49,7 @@ class ScenarioTrials:
         no step (the agent judges a loop by the overshoot of its step).
     """
 
-    def __init__(
-        self,
-        scenario: Scenario,
-        config: WncscaConfig,
-        *,
-        simulate: Callable[[Scenario], RunRecord],
-    ) -> None:
+    def __init__(self, scenario: Scenario, config: WncscaConfig, *, simulate: Simulate) -> None:
         self._simulate = simulate
         self.loops: tuple[str, ...] = tuple(scenario.simulated_loops())
         self.benchmark = {n: float(scenario.loops[n].tau_s) for n in self.loops}  # type: ignore[arg-type]
@@ -101,7 +105,7 @@ class ScenarioTrials:
         self.fingerprint = hashlib.sha256(
             json.dumps(base, sort_keys=True, default=str).encode()
         ).hexdigest()[:16]
-        self.scenario = Scenario.model_validate(base)  # validated once
+        self.scenario = type(scenario).model_validate(base)  # validated once
 
     def scenario_at(
         self,
@@ -149,10 +153,6 @@ def agent_config(scenario: Scenario) -> WncscaConfig:
     """The configuration of the scenario's agent node, or the defaults if it has none."""
     name = scenario.agent_node()
     return scenario.nodes[name] if name else WncscaConfig()  # type: ignore[return-value]
-
-
-Simulate = Callable[[Scenario], RunRecord]
-"""Runs a scenario to its record: :func:`runtime.direct.simulate`."""
 
 
 def loop_model(
