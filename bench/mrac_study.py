@@ -30,6 +30,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.linalg import solve_continuous_lyapunov
+from scipy.optimize import fsolve
 
 from controllers.mrac import (
     MRAC,
@@ -243,8 +245,6 @@ def _fmt(v: float) -> str:
 
 
 def report_column() -> dict[str, Any]:
-    from scipy.optimize import fsolve
-
     print("\n1. Column steady state vs Table 3.2 (max |x_n - x_n*| over the 16 stages)")
     tab = np.array(TABLE_3_2_X)
     x_pr = fsolve(lambda z: printed_model_rhs(0.0, z), tab, xtol=1e-13)
@@ -328,8 +328,6 @@ def _at(t: float | None) -> str:
 
 
 def _gram(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    from scipy.linalg import solve_continuous_lyapunov
-
     return solve_continuous_lyapunov(a, -b @ b.T)
 
 

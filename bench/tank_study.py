@@ -22,6 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import control
 import numpy as np
 
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
@@ -170,8 +171,6 @@ def simulation_study() -> None:
 
 # -- 2. small steps against eq. (23) ------------------------------------------------------------
 def reference_model() -> None:
-    import control
-
     rule("2. Small steps (+5 % of the level) against eq. (23), 0.25/(s^2 + 0.7071 s + 0.25)")
     print(
         f"{'level mm':>9s}  {'NL PI: max dev % of step, OS %':>32s}"

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import copy
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+
+from kernel.bus import open_router
+from runtime.scenario import NODE_KINDS, plain_behaviour
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -34,7 +39,6 @@ def _global_state_unchanged():
 def stand_in(monkeypatch):
     """``stand_in(kind, cls)``: nodes of ``kind`` run behaviour class ``cls(name, scenario)``
     instead of their own, for this test (a registry entry swapped, as a new kind would be)."""
-    from runtime.scenario import NODE_KINDS, plain_behaviour
 
     def swap(kind: str, cls) -> None:
         monkeypatch.setitem(
@@ -63,9 +67,6 @@ def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) 
     Checks ``predicate`` every ``interval`` seconds (on an ``Event`` that is never set) and fails
     with ``what`` after ``timeout`` seconds. Bus conditions wait on zenoh callbacks instead.
     """
-    import threading
-    import time
-
     ticker = threading.Event()
     deadline = time.monotonic() + timeout
     while not predicate():
@@ -77,8 +78,6 @@ def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) 
 @pytest.fixture(scope="session")
 def router():
     """A real zenoh router in this process on a free loopback port: ``(session, endpoint)``."""
-    from kernel.bus import open_router
-
     session, locators = open_router("tcp/127.0.0.1:0")
     yield session, locators[0]
     session.close()

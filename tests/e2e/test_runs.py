@@ -23,7 +23,7 @@ from bus_schemas import Tick, codec, keys
 from core.record import summarize
 from kernel.bus import open_client
 from runtime.direct import simulate
-from runtime.history import messages_digest
+from runtime.history import load_record, messages_digest
 from runtime.scenario import load_scenario
 from tests.conftest import (
     BENCHMARK,
@@ -347,7 +347,6 @@ def test_wncs_inject_reroutes_a_running_run(tmp_path):
         and configs[-1]["paths"]["level.sensor"]["hops"] == 4
     )
     assert summary["messages"]["dropped_invalid"].get("events/network", 0) >= 1
-    from runtime.history import load_record
 
     level = load_record(out / "history.sqlite", load_scenario(scenario), engine="processes")
     level = level.loops["level"]

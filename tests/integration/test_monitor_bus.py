@@ -12,6 +12,7 @@ from agents.monitor.behaviour import assessment_body
 from bus_schemas import MonitorAssessment, codec, keys
 from core.time import to_ticks
 from runtime.cli import main
+from runtime.history import connect
 from runtime.launcher import launch
 from tests.conftest import SCENARIOS, write_variant
 
@@ -44,8 +45,6 @@ def cli_args(run_dir, until: float | None = None) -> list[str]:
 
 
 def published(run_dir) -> list[MonitorAssessment]:
-    from runtime.history import connect
-
     with connect(run_dir / "history.sqlite") as conn:
         rows = conn.execute(
             "SELECT body FROM messages WHERE key = ? ORDER BY id",

@@ -6,15 +6,18 @@ import json
 import threading
 
 import msgpack
+import yaml
 
+from agents.operator.behaviour import OperatorBehaviour
 from bus_schemas import keys
+from controllers.behaviour import ControllerBehaviour
 from core.record import summarize
 from kernel.bus import open_client
 from runtime.direct import simulate
-from runtime.history import messages_digest
+from runtime.history import connect, messages_digest
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
-from tests.conftest import BENCHMARK, wait_until
+from tests.conftest import BENCHMARK, SCENARIOS, wait_until, write_variant
 
 
 def _traces(summary):
@@ -75,10 +78,6 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
 
 def test_tank_scenarios_over_the_bus_equal_direct(tmp_path):
     """Seed 002's loops (non-linear PI; self-tuning with seeded measurement noise) on the bus."""
-    import yaml
-
-    from tests.conftest import SCENARIOS
-
     short = yaml.safe_load((SCENARIOS / "tank_sim.yaml").read_text())
     short["end_time"] = 40.0  # through the first disturbance; keeps the test quick
     short["setpoints"] = short["setpoints"][:1]
@@ -93,7 +92,6 @@ def test_tank_scenarios_over_the_bus_equal_direct(tmp_path):
 
 def test_wsn_paths_with_losses_over_the_bus_equal_direct(tmp_path):
     """Random per-hop delays, retries and losses: the bus delivers exactly what direct does."""
-    from tests.conftest import SCENARIOS, write_variant
 
     def lossy(d):
         d["end_time"] = 3.0
@@ -116,10 +114,6 @@ def test_wsn_paths_with_losses_over_the_bus_equal_direct(tmp_path):
 def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
     """Same seed, same history with the gateway in the loop; net/stats agrees with the traces;
     an event that leaves no route reports the path down and the run goes on."""
-    import msgpack as _msgpack
-
-    from runtime.history import connect
-    from tests.conftest import SCENARIOS, write_variant
 
     def cut_r2(d):
         d["end_time"] = 4.0
@@ -145,7 +139,7 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
         [(n_proposals,)] = conn.execute(
             "SELECT count(*) FROM messages WHERE key = 'net/proposal'"
         ).fetchall()
-    stats = _msgpack.unpackb(body)["paths"]
+    stats = msgpack.unpackb(body)["paths"]
     for loop in ("level", "temperature"):
         mine, theirs = summary["network"]["paths"][loop], stats[f"{loop}.sensor"]
         # the snapshot at the end is taken before the packets of the last instant (the sample
@@ -159,7 +153,6 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
 def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, stand_in):
     """The launcher cancels the clock, which stops the other nodes: no node thread outlives the
     run (a daemon thread still in zenoh at interpreter exit aborts the process)."""
-    from agents.operator.behaviour import OperatorBehaviour
 
     class Failing(OperatorBehaviour):
         def __init__(self, name, scenario) -> None:
@@ -178,8 +171,6 @@ def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, st
 def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, stand_in):
     """A node that subscribes only after the clock stopped the run never sees the ``Stop``: the
     launcher aborts it (a loaded machine makes this race real)."""
-    from agents.operator.behaviour import OperatorBehaviour
-    from controllers.behaviour import ControllerBehaviour
 
     class Failing(OperatorBehaviour):
         def __init__(self, name, scenario) -> None:

@@ -12,6 +12,7 @@ from types import ModuleType
 
 import pytest
 
+from agents.wncsca.paper import successive_approximation
 from core.record import loop_metrics
 from runtime.direct import loop_model, simulate
 from runtime.scenario import Scenario, load_scenario
@@ -75,7 +76,6 @@ def test_figures_are_written(figures, tmp_path):
         model, "level", tmp_path / "fig9.png", periods=(0.1, 0.3), resolution=0.005
     )
     assert [len(c.delays) for c in curves] == [2, 2, 2]
-    from agents.wncsca.paper import successive_approximation
 
     assignment = successive_approximation(model, figures.EXAMPLE_DELAYS)
     figures.fig10(assignment, tmp_path / "fig10.png")

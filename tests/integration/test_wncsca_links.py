@@ -5,6 +5,7 @@ controllers follow; the run then equals the direct engine's run at the assigned 
 from __future__ import annotations
 
 import itertools
+import sqlite3
 
 import pytest
 
@@ -83,7 +84,6 @@ def test_agent_follows_a_changing_wsn(tmp_path):
     """cstr_recycle_qdc_wncs.yaml, its events moved earlier: at every proposal (start, relay r
     down, r back up) the agent sets h = margin x h_max(d) for the proposal's link delay, and the
     controllers transmit at that period from their next send."""
-    import sqlite3
 
     def early(d):
         d["end_time"] = 0.3

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import control  # balred uses slycot, a dev dependency
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -281,8 +282,6 @@ def test_balanced_reduction_properties():
 
 
 def test_balanced_truncation_agrees_with_python_control_balred():
-    import control  # balred uses slycot, a dev dependency
-
     jx, ju = COLUMN.jacobian(X_FIT, U_FIT)
     sys = control.ss(jx, ju, APPENDIX_E_C, 0)
     ours = balanced_reduction(jx, ju, APPENDIX_E_C, 2, "truncate")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from pydantic import ValidationError
+from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
 from plants.cstr_recycle import PAPER_PARAMS, CSTRRecycle, CSTRRecycleParams
@@ -119,8 +120,6 @@ def test_two_unit_form_of_eq_11():
 
 
 def test_linearize_returns_named_state_space_and_predicts_small_steps():
-    from scipy.integrate import solve_ivp
-
     x_s, u_s = PLANT.unstable_steady_state()
     sys = PLANT.linearize(x_s, u_s)
     assert sys.nstates == 4 and sys.ninputs == 4 and sys.noutputs == 2

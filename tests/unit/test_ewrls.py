@@ -10,6 +10,7 @@ from pydantic import ValidationError
 
 from controllers.ewrls import EWRLS, SelfTuningNLPI, STNLPIConfig, TankEstimator
 from controllers.nlpi import NLPIConfig, NonlinearPI
+from plants.integrate import rk4
 from plants.tank import RIG_PARAMS, SIM_PARAMS, Tank, TankParams
 from tests.unit.test_nlpi import (
     closed_loop,
@@ -115,7 +116,6 @@ def test_tank_estimator_open_loop_identifies_exactly():
     # open-loop fill and drain with a varying pump command, noise-free
     est = TankEstimator(1.0, 1.0, tau_ref=0.1, window=0.5, change_error=None)
     x = np.array([20.0])
-    from plants.integrate import rk4
 
     u_prev = None
     for k in range(1500):

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
 
-from plants.integrate import rk4
+from plants.integrate import integrator_of, rk4, rk4_tuple
 from plants.jcstr import BENCHMARK_PARAMS, JCSTR
 
 PLANT = JCSTR(BENCHMARK_PARAMS)
@@ -32,8 +32,6 @@ def test_empty_segment_returns_the_state():
 
 
 def test_tuple_integrator_is_bit_identical_to_the_numpy_one():
-    from plants.integrate import integrator_of, rk4_tuple
-
     x0 = (0.66, 50.0, 143.0)
     u = (9.0, 0.8)
     a = rk4(PLANT.rhs, 0.1, np.array(x0), 0.87, np.array(u), max_step=0.005)
@@ -45,7 +43,6 @@ def test_tuple_integrator_is_bit_identical_to_the_numpy_one():
 
 def test_tuple_integrator_is_bit_identical_for_every_dimension():
     """The written-out loops (one per state dimension) do numpy's operations in numpy's order."""
-    from plants.integrate import rk4_tuple
 
     def rhs(t, x, u):  # only + and *: numpy and Python floats round alike
         return -0.3 * x + 0.2 * np.roll(x, 1) * np.roll(x, -1) + u[0] + 0.01 * t

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from plants.jcstr import BENCHMARK_PARAMS, JCSTR
@@ -51,9 +53,6 @@ def test_jacobians_match_finite_differences():
 
 def test_linearized_model_predicts_small_steps():
     """control.forced_response of the linear model vs the nonlinear model (solve_ivp)."""
-    import control
-    from scipy.integrate import solve_ivp
-
     x_bar, u_bar = PLANT.equilibrium({"H": 0.7, "T": 52.0})
     sys = PLANT.linearize(x_bar, u_bar)
     assert sys.nstates == 3 and sys.ninputs == 2 and sys.noutputs == 2

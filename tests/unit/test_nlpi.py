@@ -11,6 +11,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import control
 import numpy as np
 import pytest
 from pydantic import ValidationError
@@ -312,8 +313,6 @@ def disturbance_peaks(run: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def test_disturbance_rejection_is_the_same_at_every_level():
-    import control
-
     d = 1.0  # mm/s, 20 % of the outflow at 100 mm
     peaks = disturbance_peaks(sim_study(law_sim(), q_d=disturbance(d)))
     assert np.max(peaks) / np.min(peaks) - 1.0 < 0.10
@@ -341,8 +340,6 @@ def test_fixed_gain_baseline_varies_with_the_level_and_the_nonlinear_pi_does_not
 # -- eq. (23): the closed loop is the reference model at every level ----------------------------
 @pytest.mark.parametrize("level", [5.0, 50.0, 100.0, 150.0, 400.0])
 def test_small_steps_follow_the_reference_model_eq23(level):
-    import control
-
     step = 0.05 * level
     run = closed_loop(SIM, law_sim(), ts=0.05, t_end=30.0, r=lambda t: level + step, h0=level)
     ref = control.step_response(control.tf([0.25], [1, 0.7071, 0.25]), run["t"]).outputs
@@ -351,8 +348,6 @@ def test_small_steps_follow_the_reference_model_eq23(level):
 
 
 def test_the_reference_model_check_can_fail():
-    import control
-
     # a 50 % error on b in the design: the loop is no longer eq. (23)
     law = NonlinearPI.from_config(SIM_SPEC.model_copy(update={"b": 3.0}), plant=SIM)
     run = closed_loop(SIM, law, ts=0.05, t_end=30.0, r=lambda t: 105.0, h0=100.0)

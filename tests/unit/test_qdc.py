@@ -3,11 +3,14 @@ bad input, and the non-linear closed loop around the maximum update period."""
 
 from __future__ import annotations
 
+import control
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from pydantic import ValidationError
+from scipy.integrate import solve_ivp
 from scipy.linalg import block_diag, expm
+from scipy.signal import place_poles
 
 from agents.update_period.analysis import CSTRRecycleCase
 from controllers.qdc import (
@@ -44,8 +47,6 @@ def test_controller_gains_place_poles_and_cancel_coupling():
 
 
 def test_diagonal_design_is_what_place_poles_returns_for_square_b():
-    from scipy.signal import place_poles
-
     for i in range(2):
         k_place = -place_poles(PLANT.a(i, i), PLANT.b(i), [-5.0, -1.0]).gain_matrix
         assert_allclose(GAINS.K[i][i], k_place, rtol=1e-9, atol=1e-9)
@@ -55,8 +56,6 @@ def test_diagonal_design_is_what_place_poles_returns_for_square_b():
 
 
 def test_observer_gains_place_minus_50_and_minus_25():
-    import control
-
     for i in range(2):
         a, c = PLANT.a(i, i), PLANT.c(i)
         ev = np.sort(np.linalg.eigvals(a - GAINS.L[i] @ c).real)
@@ -136,8 +135,6 @@ def test_exact_models_and_exact_estimates_reproduce_the_ideal_loop_for_any_perio
 
 def test_linear_simulation_matches_solve_ivp_of_the_controller_equations():
     """The exact sampled run against a direct integration of plant + eq. (4) with resets."""
-    from scipy.integrate import solve_ivp
-
     A, B, _ = PLANT.full()
     model = CASE.model(0.2)
     net = QDCNetwork(PLANT, GAINS, model=model)

@@ -7,6 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from pydantic import ValidationError
 from scipy.linalg import expm
+from scipy.optimize import brentq
 
 from agents.update_period.analysis import (
     PAPER_H_MAX,
@@ -178,8 +179,6 @@ def test_find_h_max_returns_the_first_crossing_of_a_non_monotone_radius():
     assert r.h_max == pytest.approx(0.125, abs=1e-8)
     assert_allclose(r.crossings, [0.125, 0.375, 0.625, 0.875], atol=1e-8)
     # a plain bisection between a stable and an unstable end would find a later crossing
-    from scipy.optimize import brentq
-
     assert brentq(lambda h: rho(h) - 1, 0.01, 0.7) != pytest.approx(0.125, abs=1e-3)
 
 

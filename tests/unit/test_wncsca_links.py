@@ -11,12 +11,13 @@ from pydantic import ValidationError
 
 from agents.update_period.analysis import CSTRRecycleCase
 from agents.update_period.delay import DelayedUpdates, find_h_range
+from agents.update_period.sampled import SampledQDC, find_h_max_sampled
 from agents.wncsca.config import LinksConfig, WncscaConfig
 from agents.wncsca.links import judge_links, link_groups
 from controllers.qdc import QDCNetwork, closed_loop_matrices
 from runtime.direct import coordinator as build_coordinator
 from runtime.scenario import load_scenario
-from tests.conftest import SCENARIOS
+from tests.conftest import SCENARIOS, write_variant
 
 CASE = CSTRRecycleCase()
 H_MAX = CASE.h_max("qdc").h_max
@@ -171,8 +172,6 @@ def test_a_malformed_link_path_is_refused(coordinator, paths, why):
 def test_the_sampled_analysis_assigns_a_multiple_of_the_sampling_period(tmp_path):
     """analysis: sampled: h = floor(margin x N_max) tau_s, N_max from find_h_max_sampled on the
     analysis' own CSTR case (built apart from the laws); a link delay is rounded up to samples."""
-    from agents.update_period.sampled import SampledQDC, find_h_max_sampled
-    from tests.conftest import write_variant
 
     def sampled(d):
         d["nodes"]["wncsca"]["links"] = {"analysis": "sampled", "margin": 0.9}
