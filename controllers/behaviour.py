@@ -50,71 +50,115 @@ the law refuses (``ValueError``, e.g. the wrong length) is dropped and counted a
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
+
+from pydantic import BaseModel
 
 from bus_schemas import Estimate, Move, Rates, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
-from controllers.registry import build_law, build_multi_loop_law, uses_feedforward
+from controllers.registry import MultiLoopContext, build_law, build_multi_loop_law
 from core.behaviour import Behaviour
-from core.time import to_ticks, to_units
+from core.time import to_units
 
-__all__ = ["ControllerBehaviour"]
+__all__ = ["ControllerBehaviour", "ControllerSpec"]
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """What a controller node needs of its scenario, computed once
+    (:func:`runtime.specs.controller_spec`).
+
+    Attributes
+    ----------
+    loops : tuple of str
+        The loops it controls, in its law's order (one for a single-loop law).
+    multi : bool
+        Whether the law controls several loops at once (``loops:``).
+    law : BaseModel
+        The law's validated configuration (:mod:`controllers.registry` builds it).
+    plant : object
+        The plant model of the first loop, for laws designed from it.
+    tau_s : float
+        The loop's nominal sampling period (multi-loop: the shortest of its sampled loops).
+    setpoints : mapping
+        Initial set point of every loop of its plants (the feedforward depends on all of them).
+    setpoint_keys : mapping
+        Loop -> where its set-point changes arrive (operations, or the coordination agent).
+    governed : bool
+        Whether a coordination agent assigns rates (``wncsca/rates``).
+    feedforward : object or None
+        The single-loop law's steady-state feedforward (seed 000, eq. (5)-(7)), if it takes one.
+    context : MultiLoopContext or None
+        A multi-loop law's loops' signals and links.
+    measured, moved : tuple of str
+        A multi-loop law's loops with a sensor, with an actuator.
+    sends : mapping
+        Link it transmits on -> initial period, ticks (by link name).
+    receives : tuple of str
+        Links it receives.
+    end : int
+        End of the run, ticks.
+    """
+
+    loops: tuple[str, ...]
+    multi: bool
+    law: BaseModel
+    plant: Any
+    tau_s: float
+    setpoints: Mapping[str, float]
+    setpoint_keys: Mapping[str, str]
+    governed: bool
+    end: int
+    feedforward: Any = None
+    context: MultiLoopContext | None = None
+    measured: tuple[str, ...] = ()
+    moved: tuple[str, ...] = ()
+    sends: Mapping[str, int] = field(default_factory=dict)
+    receives: tuple[str, ...] = ()
 
 
 class ControllerBehaviour(Behaviour):
-    def __init__(self, name: str, scenario: Any) -> None:
+    def __init__(self, name: str, spec: ControllerSpec) -> None:
         super().__init__(name)
-        self.scenario = scenario
-        cfg = self.scenario.nodes[self.name]
-        self.loops = cfg.loop_names
-        self.multi = cfg.loops is not None
+        self.spec = spec
+        self.loops = spec.loops
+        self.multi = spec.multi
         self.loop = self.loops[0]
-        loop = self.scenario.loops[self.loop]
-        self.plant = loop.plant
-        plants = sorted({self.scenario.loops[n].plant for n in self.loops})
-        self.setpoints = {
-            n: lp.setpoint for p in plants for n, lp in self.scenario.loops_of_plant(p).items()
-        }
+        self.setpoints = dict(spec.setpoints)
         self.closed = True
         self._samples: list[Sample] = []
         self._setpoints_changed = False
-        plant = self.scenario.nodes[loop.plant].build()
         self._link_periods: dict[str, int] = {}
         if self.multi:
             self.feedforward = None
             self.law = build_multi_loop_law(
-                cfg.law,
-                loops=self.loops,
-                plant=plant,
-                tau_s=self.scenario.multi_loop_tau_s(self.name),
-                context=self.scenario.multi_loop_context(self.name),
+                spec.law, loops=self.loops, plant=spec.plant, tau_s=spec.tau_s, context=spec.context
             )
             self._held: dict[str, tuple[int, float]] = {}  # loop -> (t_sampled, value)
             self._arrived: list[tuple[str, Sample]] = []
-            self._measured = [n for n in self.loops if self.scenario.loops[n].sensor is not None]
-            self._moved = [n for n in self.loops if self.scenario.loops[n].actuator is not None]
+            self._measured = list(spec.measured)
+            self._moved = list(spec.moved)
             for name in self._measured:
                 self.subscribe(keys.meas(name), Sample, self._on_meas_of(name))
-            self._end = to_ticks(self.scenario.end_time)
+            self._end = spec.end
             self._last_sent: dict[str, int] = {}
             self._generation: dict[str, int] = {}
-            for name, link in sorted(self.scenario.links.items()):
-                if link.from_ == self.name:
-                    self._link_periods[name] = to_ticks(link.period)
+            for name in sorted(set(spec.sends) | set(spec.receives)):
+                if name in spec.sends:
+                    self._link_periods[name] = spec.sends[name]
                     self._generation[name] = 0
                     self.at(0, self._sender(name, 0))
-                if link.to == self.name:
+                if name in spec.receives:
                     self.subscribe(keys.link_rx(name), Estimate, self._on_estimate(name))
         else:
-            self.feedforward = (
-                self.scenario.feedforward(self.loop) if uses_feedforward(cfg.law) else None
-            )
-            self.law = build_law(cfg.law, u_bar=self._u_bar(), plant=plant, tau_s=loop.tau_s)
+            self.feedforward = spec.feedforward
+            self.law = build_law(spec.law, u_bar=self._u_bar(), plant=spec.plant, tau_s=spec.tau_s)
             self.subscribe(keys.meas(self.loop), Sample, self._on_meas)
         for name in self.setpoints:
-            self.subscribe(self.scenario.setpoint_key(name), Setpoint, self._on_setpoint(name))
-        if self.scenario.agent_node() is not None:
+            self.subscribe(spec.setpoint_keys[name], Setpoint, self._on_setpoint(name))
+        if spec.governed:
             self.subscribe(keys.wncsca_rates(), Rates, self._on_rates)
 
     def _u_bar(self) -> float:

@@ -22,6 +22,7 @@ the sampling periods the agent assigns (``wncsca/rates``) by telling the plants'
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from bus_schemas import (
@@ -44,15 +45,38 @@ from core.time import to_ticks, to_units
 from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier
 from gateway.topology import parse_event
 
-__all__ = ["NetworkBehaviour"]
+__all__ = ["NetworkBehaviour", "NetworkSpec"]
+
+
+@dataclass(frozen=True)
+class NetworkSpec:
+    """What a network or gateway node needs of its scenario, computed once
+    (:func:`runtime.specs.network_spec`).
+
+    Attributes
+    ----------
+    carrier : PathCarrier
+        Its loops' and links' paths (built from the scenario: routes, delays, generators).
+    governed : bool
+        Whether a coordination agent judges its proposals and assigns rates.
+    end : int
+        End of the run, ticks.
+    stats_period : int or None
+        Period of ``net/stats`` (a gateway; always sent at the end), ticks.
+    """
+
+    carrier: PathCarrier
+    governed: bool
+    end: int
+    stats_period: int | None = None
 
 
 class NetworkBehaviour(Behaviour):
-    def __init__(self, name: str, scenario: Any) -> None:
+    def __init__(self, name: str, spec: NetworkSpec) -> None:
         super().__init__(name)
-        self.scenario = scenario
-        self.carrier = PathCarrier(self.scenario, self.name)
-        self.governed = self.scenario.agent_node() is not None
+        self.spec = spec
+        self.carrier = spec.carrier
+        self.governed = spec.governed
         self._proposals = 0
         self._awaiting: tuple[int, str, str, dict] | None = None  # id, event, source, paths
         self._paths: dict = {}
@@ -65,10 +89,9 @@ class NetworkBehaviour(Behaviour):
             self.at(0, self._announce("initial", "initial", None))
             for t, _, event in self.carrier.events:
                 self.at(t, self._announce(event.type, "scenario", event))
-            cfg = self.scenario.nodes[self.name]
-            end = to_ticks(self.scenario.end_time)
-            if cfg.stats_period is not None:
-                period = to_ticks(cfg.stats_period)
+            end = spec.end
+            if spec.stats_period is not None:
+                period = spec.stats_period
                 for t in range(period, end, period):
                     self.at(t, self._stats)
             self.at(end, self._stats)

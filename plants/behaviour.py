@@ -15,6 +15,8 @@ segment at the monitoring grid: its trajectory does not depend on other nodes' t
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,42 +24,70 @@ import numpy as np
 from bus_schemas import Move, PlantState, Sample, SamplingPeriod, keys
 from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
-from core.time import to_ticks, to_units
+from core.time import to_units
 from plants.integrate import integrator_of
 
-__all__ = ["PlantBehaviour"]
+__all__ = ["PlantBehaviour", "PlantSpec"]
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """What a plant node needs of its scenario, computed once (:func:`runtime.specs.plant_spec`).
+
+    Attributes
+    ----------
+    model : object
+        The plant model (:mod:`plants.registry`).
+    x0, u0 : tuple of float
+        Initial state and held inputs, in the model's ``state_names`` / ``input_names`` order.
+    max_step : float
+        Largest RK4 step, time units.
+    monitor, end : int
+        Period of the true-state record and end of the run, ticks.
+    sensors : mapping
+        Sampled output -> its loop's initial sampling period, ticks (in the loops' name order).
+    noise : mapping
+        Output -> standard deviation of its additive measurement noise.
+    rngs : mapping
+        Sampled output -> its seeded generator (the node owns it; drawn from only with noise).
+    """
+
+    model: Any
+    x0: tuple[float, ...]
+    u0: tuple[float, ...]
+    max_step: float
+    monitor: int
+    end: int
+    sensors: Mapping[str, int]
+    noise: Mapping[str, float]
+    rngs: Mapping[str, np.random.Generator]
 
 
 class PlantBehaviour(Behaviour):
-    def __init__(self, name: str, scenario: Any) -> None:
+    def __init__(self, name: str, spec: PlantSpec) -> None:
         super().__init__(name)
-        self.scenario = scenario
-        cfg = self.scenario.nodes[self.name]
-        self.model = cfg.build()
-        self.x = np.array([cfg.x0[s] for s in self.model.state_names], dtype=float)
-        self.u = np.array([cfg.u0[s] for s in self.model.input_names], dtype=float)
+        self.spec = spec
+        self.model = spec.model
+        self.x = np.array(spec.x0, dtype=float)
+        self.u = np.array(spec.u0, dtype=float)
         self.t_state = 0
-        self.max_step = cfg.max_step
+        self.max_step = spec.max_step
         self._step = integrator_of(self.model)
-        self.monitor = to_ticks(cfg.monitor_period)
-        self.end = to_ticks(self.scenario.end_time)
+        self.monitor = spec.monitor
+        self.end = spec.end
         self._next_record = 0
         self._records_t: list[int] = []
         self._records_x: list[list[float]] = []
-        self.noise = dict(cfg.noise)
-        self._rngs: dict[str, Any] = {}
+        self.noise = dict(spec.noise)
         self.periods: dict[str, int] = {}
         self._last_sample: dict[str, int] = {}
         self._generation: dict[str, int] = {}
-        for loop in self.scenario.loops_of_plant(self.name).values():
-            if loop.sensor is None:
-                continue  # an actuator-only loop: nothing to sample
-            self.periods[loop.sensor] = to_ticks(loop.tau_s)
-            self._generation[loop.sensor] = 0
-            self.at(0, self._sampler(loop.sensor, 0))
-            self.subscribe(
-                keys.sampling(self.name, loop.sensor), SamplingPeriod, self._on_period(loop.sensor)
-            )
+        for sensor, period in spec.sensors.items():
+            self.periods[sensor] = period
+            self._generation[sensor] = 0
+            self.at(0, self._sampler(sensor, 0))
+            key = keys.sampling(self.name, sensor)
+            self.subscribe(key, SamplingPeriod, self._on_period(sensor))
         for input_name in self.model.input_names:  # loop actuators and scheduled disturbances
             self.subscribe(keys.actuator(self.name, input_name), Move, self._actuator(input_name))
         self.at(self.end, self._final)
@@ -97,9 +127,7 @@ class PlantBehaviour(Behaviour):
         rescheduled the sensor since: then this timer is stale and does nothing)."""
         index = self.model.output_names.index(signal)
         sigma = self.noise.get(signal, 0.0)
-        if signal not in self._rngs:
-            self._rngs[signal] = self.scenario.sensor_rng(self.name, signal)
-        rng = self._rngs[signal]
+        rng = self.spec.rngs[signal]
 
         def sample() -> None:
             if generation != self._generation[signal]:

@@ -26,10 +26,13 @@ Two node names are reserved and always present: ``clock`` and ``historian``.
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
+import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -38,8 +41,10 @@ from agents.monitor.config import MonitorNodeConfig
 from agents.operator.behaviour import OperatorBehaviour
 from agents.wncsca import behaviour as wncsca_behaviour
 from agents.wncsca.config import MODES, WncscaConfig
+from agents.wncsca.links import link_groups
 from bus_schemas import keys
 from controllers.behaviour import ControllerBehaviour
+from controllers.feedforward import SteadyStateFeedforward
 from controllers.registry import (
     LawConfig,
     MultiLoopContext,
@@ -61,13 +66,20 @@ from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
 from plants.behaviour import PlantBehaviour
+from runtime.specs import (
+    controller_spec,
+    monitor_spec,
+    network_spec,
+    operator_spec,
+    plant_spec,
+)
 
 __all__ = [
     "RESERVED_NODES",
     "NODE_KINDS",
     "NodeBuild",
     "Simulate",
-    "plain_behaviour",
+    "BehaviourBuild",
     "ClockConfig",
     "PlantNodeConfig",
     "ControllerNodeConfig",
@@ -293,26 +305,33 @@ def _kind_of(config: type[BaseModel]) -> str:
     return next(k.name for k in NODE_KINDS.kinds.values() if k.config is config)
 
 
-def plain_behaviour(cls: Callable[[str, Any], Behaviour]) -> NodeBuild:
-    """The build of a node kind whose behaviour needs nothing but its name and the scenario."""
+@dataclass(frozen=True)
+class BehaviourBuild:
+    """A node kind's build: ``behaviour(name, spec(scenario, name))``, the node's typed spec
+    computed once (:mod:`runtime.specs`)."""
 
-    def build(name: str, scenario: Scenario, simulate: Simulate) -> Behaviour:
-        return cls(name, scenario)
+    behaviour: Callable[[str, Any], Behaviour]
+    spec: Callable[[Scenario, str], Any]
 
-    return build
+    def __call__(self, name: str, scenario: Scenario, simulate: Simulate) -> Behaviour:
+        return self.behaviour(name, self.spec(scenario, name))
 
 
 NODE_KINDS: Registry[Behaviour] = Registry(
     "node kind",
     tag="kind",
     kinds=[
-        Kind("plant", PlantNodeConfig, plain_behaviour(PlantBehaviour)),
-        Kind("controller", ControllerNodeConfig, plain_behaviour(ControllerBehaviour)),
-        Kind("network", NetworkNodeConfig, plain_behaviour(NetworkBehaviour)),
-        Kind("gateway", GatewayNodeConfig, plain_behaviour(NetworkBehaviour)),
-        Kind("operator", OperatorNodeConfig, plain_behaviour(OperatorBehaviour)),
+        Kind("plant", PlantNodeConfig, BehaviourBuild(PlantBehaviour, plant_spec)),
+        Kind(
+            "controller",
+            ControllerNodeConfig,
+            BehaviourBuild(ControllerBehaviour, controller_spec),
+        ),
+        Kind("network", NetworkNodeConfig, BehaviourBuild(NetworkBehaviour, network_spec)),
+        Kind("gateway", GatewayNodeConfig, BehaviourBuild(NetworkBehaviour, network_spec)),
+        Kind("operator", OperatorNodeConfig, BehaviourBuild(OperatorBehaviour, operator_spec)),
         Kind("agent", WncscaConfig, wncsca_behaviour.build, "the coordination agent"),
-        Kind("monitor", MonitorNodeConfig, plain_behaviour(MonitorBehaviour)),
+        Kind("monitor", MonitorNodeConfig, BehaviourBuild(MonitorBehaviour, monitor_spec)),
     ],
 )
 """Every node kind: its ``kind:``, its configuration, and ``build(name, scenario, simulate)``:
@@ -685,8 +704,6 @@ class Scenario(BaseModel):
     def _check_agent_links(self) -> None:
         """The analysis an agent with ``links:`` will run needs laws it can analyse (built now,
         so that a refusal names the agent before anything starts)."""
-        from agents.wncsca.links import link_groups
-
         agent = self.agent_node()
         cfg = self.nodes[agent] if agent is not None else None
         if cfg is None or cfg.links is None:
@@ -887,8 +904,6 @@ class Scenario(BaseModel):
 
     def feedforward(self, loop: str) -> Any:
         """The steady-state feedforward object of ``loop`` (seed 000, eq. (5)-(7))."""
-        from controllers.feedforward import SteadyStateFeedforward
-
         lp = self.loops[loop]
         plant = self.nodes[lp.plant].build()
         outputs = {
@@ -907,10 +922,6 @@ class Scenario(BaseModel):
 
     def sensor_rng(self, plant: str, signal: str) -> Any:
         """The seeded generator of one sensor's measurement noise (the plant node owns it)."""
-        import zlib
-
-        import numpy as np
-
         return np.random.default_rng(
             [self.seed, zlib.crc32(plant.encode()), zlib.crc32(signal.encode())]
         )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import threading
 import time
 from pathlib import Path
@@ -13,7 +14,7 @@ import pytest
 import yaml
 
 from kernel.bus import open_router
-from runtime.scenario import NODE_KINDS, plain_behaviour
+from runtime.scenario import NODE_KINDS
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -37,13 +38,13 @@ def _global_state_unchanged():
 
 @pytest.fixture
 def stand_in(monkeypatch):
-    """``stand_in(kind, cls)``: nodes of ``kind`` run behaviour class ``cls(name, scenario)``
-    instead of their own, for this test (a registry entry swapped, as a new kind would be)."""
+    """``stand_in(kind, cls)``: nodes of ``kind`` run behaviour class ``cls(name, spec)`` (the
+    kind's own spec) instead of their own, for this test (a registry entry swapped, as a new
+    kind would be)."""
 
     def swap(kind: str, cls) -> None:
-        monkeypatch.setitem(
-            NODE_KINDS.kinds, kind, NODE_KINDS[kind].with_build(plain_behaviour(cls))
-        )
+        build = dataclasses.replace(NODE_KINDS[kind].build, behaviour=cls)
+        monkeypatch.setitem(NODE_KINDS.kinds, kind, NODE_KINDS[kind].with_build(build))
 
     return swap
 

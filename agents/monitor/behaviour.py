@@ -17,18 +17,18 @@ of status ``insufficient_data`` or ``refused`` with the reason; the node never s
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
-from agents.monitor.config import rows_needed
+from agents.monitor.config import MonitorNodeConfig, rows_needed
 from agents.monitor.errors import DataError
 from agents.monitor.run_data import RunSeries, assess_series
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, keys
 from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
-from core.errors import ConfigError
 from core.time import to_ticks
 
-__all__ = ["MonitorBehaviour", "assessment_body", "run_assessment"]
+__all__ = ["MonitorBehaviour", "MonitorSpec", "assessment_body", "run_assessment"]
 
 
 def _num(v: Any) -> float | None:
@@ -124,24 +124,37 @@ def run_assessment(
     return {**result.to_dict(), "window": info.to_dict(until, time_unit)}
 
 
+@dataclass(frozen=True)
+class MonitorSpec:
+    """What a monitor node needs of its scenario, computed once
+    (:func:`runtime.specs.monitor_spec`).
+
+    Attributes
+    ----------
+    config : MonitorNodeConfig
+        The node's configuration (checked against the scenario).
+    series : RunSeries
+        The window of the loop's columns it assesses (built from the scenario).
+    end : int
+        End of the run, ticks.
+    time_unit : str
+        The scenario's time unit, for the report's window.
+    """
+
+    config: MonitorNodeConfig
+    series: RunSeries
+    end: int
+    time_unit: str
+
+
 class MonitorBehaviour(Behaviour):
-    def __init__(self, name: str, scenario: Any) -> None:
+    def __init__(self, name: str, spec: MonitorSpec) -> None:
         super().__init__(name)
-        self.scenario = scenario
-        cfg = self.scenario.nodes[self.name]
-        try:
-            cfg.check(self.scenario, self.name)
-        except ValueError as err:
-            raise ConfigError(str(err)) from err
+        self.spec = spec
+        cfg = spec.config
         self.cfg = cfg
-        self.end = to_ticks(self.scenario.end_time)
-        self.series = RunSeries(
-            self.scenario,
-            cfg.loop,
-            cfg.columns(),
-            start=to_ticks(cfg.start),
-            window=cfg.window,
-        )
+        self.end = spec.end
+        self.series = spec.series
         for key, body_type in self.series.subscriptions():
             self.subscribe(key, body_type, self._on_message)
         if cfg.period is not None:
@@ -181,7 +194,7 @@ class MonitorBehaviour(Behaviour):
         else:
             try:
                 report = run_assessment(
-                    self.series, cfg, until=self.now, time_unit=self.scenario.time_unit
+                    self.series, cfg, until=self.now, time_unit=self.spec.time_unit
                 )
             except DataError as err:
                 body = MonitorAssessment(status="refused", text=str(err), **common)

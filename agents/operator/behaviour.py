@@ -9,30 +9,57 @@ moves, such as a draw-off flow) go straight to the plant's actuator key
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import NamedTuple
 
 from bus_schemas import ModeRequest, Move, Setpoint, keys
 from core.behaviour import Behaviour
-from core.time import to_ticks
 
-__all__ = ["OperatorBehaviour"]
+__all__ = ["OperatorBehaviour", "OperatorSpec", "SetpointAt", "ModeAt", "DisturbanceAt"]
+
+
+class SetpointAt(NamedTuple):
+    t: int  # ticks: when the set point applies
+    loop: str
+    value: float
+    announce: int  # ticks ahead of t it is announced (0: not announced)
+
+
+class ModeAt(NamedTuple):
+    t: int
+    mode: str
+
+
+class DisturbanceAt(NamedTuple):
+    t: int
+    plant: str
+    input: str
+    value: float
+
+
+@dataclass(frozen=True)
+class OperatorSpec:
+    """The scenario's schedules, in ticks (:func:`runtime.specs.operator_spec`)."""
+
+    setpoints: tuple[SetpointAt, ...] = ()
+    modes: tuple[ModeAt, ...] = ()
+    disturbances: tuple[DisturbanceAt, ...] = ()
 
 
 class OperatorBehaviour(Behaviour):
-    def __init__(self, name: str, scenario: Any) -> None:
+    def __init__(self, name: str, spec: OperatorSpec) -> None:
         super().__init__(name)
-        self.scenario = scenario
-        for change in self.scenario.setpoints:
-            t = to_ticks(change.t)
+        self.spec = spec
+        for change in spec.setpoints:
             if change.announce:
-                body = Setpoint(value=change.value, t_apply=t)
-                self.at(t - to_ticks(change.announce), self._publisher(change.loop, body))
+                body = Setpoint(value=change.value, t_apply=change.t)
+                self.at(change.t - change.announce, self._publisher(change.loop, body))
             else:
-                self.at(t, self._publisher(change.loop, Setpoint(value=change.value)))
-        for mode in self.scenario.modes:
-            self.at(to_ticks(mode.t), self._mode(mode.mode))
-        for dist in self.scenario.disturbances:
-            self.at(to_ticks(dist.t), self._disturber(dist.plant, dist.input, dist.value))
+                self.at(change.t, self._publisher(change.loop, Setpoint(value=change.value)))
+        for mode in spec.modes:
+            self.at(mode.t, self._mode(mode.mode))
+        for dist in spec.disturbances:
+            self.at(dist.t, self._disturber(dist.plant, dist.input, dist.value))
 
     def _publisher(self, loop: str, body: Setpoint) -> Callable[[], None]:
         return lambda: self.publish(keys.setpoint(loop), body)

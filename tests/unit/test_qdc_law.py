@@ -25,6 +25,7 @@ from core.record import summarize
 from core.time import to_ticks
 from runtime.direct import simulate
 from runtime.scenario import load_scenario
+from runtime.specs import controller_spec
 from tests.conftest import SCENARIOS, write_variant
 
 QDC = SCENARIOS / "cstr_recycle_qdc.yaml"
@@ -202,7 +203,7 @@ def test_actuator_only_loops_record_their_moves():
 # -- run-time link periods (the controller node alone, no bus) -----------------------------------
 def test_link_period_assigned_at_run_time_reschedules_the_next_transmission():
     scenario = load_scenario(QDC)
-    node = ControllerBehaviour("unit1", scenario)
+    node = ControllerBehaviour("unit1", controller_spec(scenario, "unit1"))
     h = to_ticks(0.038806)
 
     def fire(t):
