@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,42 +36,58 @@ from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
 from gateway.paths import Route, deliver
 from gateway.topology import Topology
 
-__all__ = ["PathCarrier", "path_hops", "SENSOR", "ACTUATOR", "LINK"]
+__all__ = ["CarrierSpec", "PathCarrier", "SENSOR", "ACTUATOR", "LINK"]
 
 SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
 _STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
 _PING_STREAM = {SENSOR: 2, ACTUATOR: 3, LINK: 5}  # and of its ping probes
 
 
-class PathCarrier:
-    """The loop paths of one network node.
+@dataclass(frozen=True)
+class CarrierSpec:
+    """What one network node's paths are made of (:func:`runtime.specs.carrier_spec`).
 
-    Parameters
+    Attributes
     ----------
-    scenario : Scenario
-        The validated scenario.
     node : str
-        Name of a ``network`` or ``gateway`` node.
+        The network or gateway node.
+    seed : int
+        The scenario's seed (each path's generators are seeded from it, the node and the path).
+    loops, links : mapping
+        The loops and links it carries, by name (sorted): their scenario configurations.
+    gateway : GatewayNodeConfig or None
+        The WSN gateway's configuration (topology, events, energy, ping probes); ``None`` for a
+        wired network of constant delays.
     """
 
-    def __init__(self, scenario: Any, node: str) -> None:
-        cfg = scenario.nodes[node]
-        self.node = node
-        self.loops = {n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == node}
-        self.links = {n: lk for n, lk in sorted(scenario.links.items()) if lk.network == node}
+    node: str
+    seed: int
+    loops: Mapping[str, Any]
+    links: Mapping[str, Any]
+    gateway: Any = None
+
+
+class PathCarrier:
+    """The loop paths of one network node, from its :class:`CarrierSpec`."""
+
+    def __init__(self, spec: CarrierSpec) -> None:
+        cfg = spec.gateway
+        node = self.node = spec.node
+        self.loops = dict(spec.loops)
+        self.links = dict(spec.links)
         self._rng: dict[tuple[str, str], np.random.Generator] = {}
         self._const: dict[tuple[str, str], int] = {}
         self.routes: dict[tuple[str, str], Route | None] = {}
         topology = None
-        self.wireless = scenario.is_wireless(node)
-        if self.wireless:
+        self.wireless = cfg is not None
+        if cfg is not None:
             topology = Topology(cfg.topology)
             gateway = cfg.gateway_node()
         paths = [(n, d) for n in self.loops for d in (SENSOR, ACTUATOR)]
         for name, direction in [*paths, *((n, LINK) for n in self.links)]:
             self._rng[name, direction] = np.random.default_rng(
                 [
-                    scenario.seed,
+                    spec.seed,
                     zlib.crc32(node.encode()),
                     zlib.crc32(name.encode()),
                     _STREAM[direction],
@@ -97,17 +115,19 @@ class PathCarrier:
         self.topology = topology
         self.periods = {n: lp.tau_s for n, lp in self.loops.items() if lp.tau_s is not None}
         self.link_periods = {n: lk.period for n, lk in self.links.items()}
-        self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
+        self.meter = (
+            EnergyMeter(cfg.energy, topology) if cfg is not None and topology is not None else None
+        )
         self.stamps = {path: TimestampEstimator() for path in self.routes}
         # what each routed path carried: (t_ready, t_deliver or None), for net/stats
         self.carried: dict[tuple[str, str], list[tuple[int, int | None]]] = {
             path: [] for path in self.routes
         }
-        self._ping_probes = cfg.ping_probes if topology is not None else 0
+        self._ping_probes = cfg.ping_probes if cfg is not None else 0
         self._ping_rng = {
             path: np.random.default_rng(
                 [
-                    scenario.seed,
+                    spec.seed,
                     zlib.crc32(node.encode()),
                     zlib.crc32(path[0].encode()),
                     _PING_STREAM[path[1]],
@@ -251,15 +271,6 @@ class PathCarrier:
         if delivery.t_deliver is not None:
             self.stamps[loop, direction].add(t_ready, delivery.t_deliver)
         return delivery.t_deliver
-
-
-def path_hops(scenario: Any) -> dict[str, int]:
-    """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario."""
-    out: dict[str, int] = {}
-    for name in scenario.carriers():
-        carrier = PathCarrier(scenario, name)
-        out.update({loop: carrier.hops(loop) for loop in carrier.loops})
-    return out
 
 
 def _finite(value: float) -> float | None:

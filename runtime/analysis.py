@@ -22,6 +22,7 @@ from agents.wncsca.decision import decide
 from agents.wncsca.plots import fig10
 from gateway.carrier import PathCarrier
 from runtime.direct import loop_model
+from runtime.specs import carrier_spec
 
 __all__ = ["analyze", "parse_delays"]
 
@@ -56,7 +57,7 @@ def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
     paths: dict[str, dict[str, Any]] = {}
     for name in scenario.carriers():
         if scenario.is_wireless(name):
-            paths.update(PathCarrier(scenario, name).configuration(0))
+            paths.update(PathCarrier(carrier_spec(scenario, name)).configuration(0))
         else:
             for loop, lp in scenario.loops.items():
                 if lp.network == name:

@@ -4,10 +4,11 @@ A behaviour takes what it needs as a frozen spec (:class:`~plants.behaviour.Plan
 :class:`~controllers.behaviour.ControllerSpec`, :class:`~agents.operator.behaviour.OperatorSpec`)
 instead of the whole :class:`~runtime.scenario.Scenario`, so it neither re-derives the scenario's
 view nor depends on its shape. The node kinds' builds (:data:`runtime.scenario.NODE_KINDS`) pass
-a node's spec to its behaviour. Not cut yet: three cores still read the scenario they are given
-(duck-typed, never imported) when it is built here into a node's spec: the network's
-``gateway.carrier.PathCarrier``, the monitor's ``agents.monitor.run_data.RunSeries``, and the
-agent's ``agents.wncsca.coordinator.Coordinator`` (built by the agent kind's own build).
+a node's spec to its behaviour. Not cut yet: two cores still read the scenario they are given
+(duck-typed, never imported) when they are built into a node's spec: the monitor's
+``agents.monitor.run_data.RunSeries`` and the agent's ``agents.wncsca.coordinator.Coordinator``
+(built by the agent kind's own build). A network's paths take a
+:class:`~gateway.carrier.CarrierSpec`.
 """
 
 from __future__ import annotations
@@ -22,13 +23,21 @@ from controllers.registry import uses_feedforward
 from core.errors import ConfigError
 from core.time import to_ticks
 from gateway.behaviour import NetworkSpec
-from gateway.carrier import PathCarrier
+from gateway.carrier import CarrierSpec, PathCarrier
 from plants.behaviour import PlantSpec
 
 if TYPE_CHECKING:
     from runtime.scenario import Scenario
 
-__all__ = ["plant_spec", "controller_spec", "network_spec", "monitor_spec", "operator_spec"]
+__all__ = [
+    "carrier_spec",
+    "path_hops",
+    "plant_spec",
+    "controller_spec",
+    "network_spec",
+    "monitor_spec",
+    "operator_spec",
+]
 
 
 def plant_spec(scenario: Scenario, name: str) -> PlantSpec:
@@ -85,11 +94,31 @@ def controller_spec(scenario: Scenario, name: str) -> ControllerSpec:
     )
 
 
+def carrier_spec(scenario: Scenario, name: str) -> CarrierSpec:
+    """What network node ``name``'s paths are made of: the loops and links it carries."""
+    return CarrierSpec(
+        node=name,
+        seed=scenario.seed,
+        loops={n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == name},
+        links={n: lk for n, lk in sorted(scenario.links.items()) if lk.network == name},
+        gateway=scenario.nodes[name] if scenario.is_wireless(name) else None,
+    )
+
+
+def path_hops(scenario: Scenario) -> dict[str, int]:
+    """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario."""
+    out: dict[str, int] = {}
+    for name in scenario.carriers():
+        carrier = PathCarrier(carrier_spec(scenario, name))
+        out.update({loop: carrier.hops(loop) for loop in carrier.loops})
+    return out
+
+
 def network_spec(scenario: Scenario, name: str) -> NetworkSpec:
     """Network or gateway node ``name``: the paths it carries, and its timing."""
     stats_period = getattr(scenario.nodes[name], "stats_period", None)  # a gateway's
     return NetworkSpec(
-        carrier=PathCarrier(scenario, name),
+        carrier=PathCarrier(carrier_spec(scenario, name)),
         governed=scenario.agent_node() is not None,
         end=to_ticks(scenario.end_time),
         stats_period=None if stats_period is None else to_ticks(stats_period),
