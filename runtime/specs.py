@@ -1,7 +1,8 @@
 """Each node's typed spec, computed once from its scenario (the scenario layer, DESIGN section 2).
 
 A behaviour takes what it needs as a frozen spec (:class:`~plants.behaviour.PlantSpec`,
-:class:`~controllers.behaviour.ControllerSpec`, :class:`~agents.operator.behaviour.OperatorSpec`)
+:class:`~controllers.behaviour.ControllerSpec`, :class:`~gateway.behaviour.NetworkSpec`,
+:class:`~agents.operator.behaviour.OperatorSpec`, :class:`~agents.monitor.behaviour.MonitorSpec`)
 instead of the whole :class:`~runtime.scenario.Scenario`, so it neither re-derives the scenario's
 view nor depends on its shape. The node kinds' builds (:data:`runtime.scenario.NODE_KINDS`) pass
 a node's spec to its behaviour. Not cut yet: two cores still read the scenario they are given
