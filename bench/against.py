@@ -69,11 +69,12 @@ class Comparison:
         )
         self._tmp.cleanup()
 
-    def run(self, snippet: str, *, rounds: int) -> tuple[list[float], list[float]]:
-        """``rounds`` alternating measurements here and in ``rev``: (ours, theirs)."""
-        ours: list[float] = []
-        theirs: list[float] = []
+    def run(self, snippet: str, *, rounds: int) -> tuple[list[Any], list[Any]]:
+        """``rounds`` alternating measurements here and in ``rev``: (ours, theirs), each the
+        JSON value the snippet printed."""
+        ours: list[Any] = []
+        theirs: list[Any] = []
         for _ in range(rounds):
-            ours.append(float(measure_in(ROOT, snippet)))
-            theirs.append(float(measure_in(self.tree, snippet)))
+            ours.append(measure_in(ROOT, snippet))
+            theirs.append(measure_in(self.tree, snippet))
         return ours, theirs

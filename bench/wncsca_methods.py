@@ -32,7 +32,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from against import ROOT, Comparison, measure_in
+from against import Comparison
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.fast import energy_rate, fast_periods
@@ -208,14 +208,10 @@ def grid_table(rows: list[Row], limit: float, tol: float) -> None:
 
 def against(rev: str, rounds: int) -> None:
     """The paper's method's decision time on the worked example here and at ``rev``."""
-    seconds: dict[str, list[float]] = {"this tree": [], rev: []}
-    sims: dict[str, set[int]] = {"this tree": set(), rev: set()}
     with Comparison(rev) as cmp:
-        for _ in range(rounds):
-            for label, tree in (("this tree", ROOT), (rev, cmp.tree)):
-                s, n = measure_in(tree, WORKED_PAPER_S)
-                seconds[label].append(s)
-                sims[label].add(n)
+        ours, theirs = cmp.run(WORKED_PAPER_S, rounds=rounds)
+    seconds = {label: [s for s, _ in runs] for label, runs in (("this tree", ours), (rev, theirs))}
+    sims = {label: {n for _, n in runs} for label, runs in (("this tree", ours), (rev, theirs))}
     print(f"## Worked example, paper's method: decision time here and at {rev}")
     print()
     print("| tree | fastest s | non-linear simulations |")

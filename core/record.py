@@ -6,6 +6,7 @@ The ``direct`` engine fills a :class:`RunRecord` as it simulates; the bus engine
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -15,6 +16,7 @@ from core.metrics import iae, step_metrics
 from core.time import to_units
 
 __all__ = [
+    "Simulate",
     "LoopRecord",
     "LinkRecord",
     "PlantRecord",
@@ -98,6 +100,11 @@ class RunRecord:
     monitor: dict[str, list[Any]] = field(default_factory=dict)  # loop -> the monitor's assessments
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
+
+
+Simulate = Callable[[Any], RunRecord]
+"""Runs a validated scenario to its record (:func:`runtime.direct.simulate`): what the
+coordination agent is handed, and what a node kind's build is given (``runtime.scenario``)."""
 
 
 def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:

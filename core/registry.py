@@ -89,10 +89,6 @@ class Registry(Generic[T]):
     def __len__(self) -> int:
         return len(self.kinds)
 
-    def names(self) -> list[str]:
-        """The registered names, sorted."""
-        return sorted(self.kinds)
-
     def of(self, config: BaseModel) -> Kind[T]:
         """The kind ``config`` configures (by its tag field)."""
         if self.tag is None:

@@ -115,9 +115,7 @@ class PathCarrier:
         self.topology = topology
         self.periods = {n: lp.tau_s for n, lp in self.loops.items() if lp.tau_s is not None}
         self.link_periods = {n: lk.period for n, lk in self.links.items()}
-        self.meter = (
-            EnergyMeter(cfg.energy, topology) if cfg is not None and topology is not None else None
-        )
+        self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
         self.stamps = {path: TimestampEstimator() for path in self.routes}
         # what each routed path carried: (t_ready, t_deliver or None), for net/stats
         self.carried: dict[tuple[str, str], list[tuple[int, int | None]]] = {

@@ -49,7 +49,7 @@ def parse_fields(words: list[str]) -> dict[str, Any]:
 def _known_nodes(run_dir: Path, network: str | None) -> tuple[str, set[str]]:
 
     scenario = load_scenario(run_dir / SCENARIO_FILE)
-    gateways = [n for n in scenario.carriers() if scenario.is_wireless(n)]
+    gateways = scenario.gateways()
     if network is None:
         if len(gateways) != 1:
             raise ConfigError(f"--network: the run has gateways {gateways}; name one")
@@ -134,7 +134,7 @@ def interpreter(scenario: Scenario) -> Interpreter:
     """How the clock of a run of ``scenario`` turns an external request into the message it
     stamps: a network event for its gateway (``events/<network>``), a mode or a set-point
     request as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
-    gateways = [n for n in scenario.carriers() if scenario.is_wireless(n)]
+    gateways = scenario.gateways()
     has_agent = scenario.agent_node() is not None
 
     def interpret(request: InjectRequest) -> tuple[str, BaseModel]:

@@ -58,7 +58,7 @@ from controllers.registry import (
 )
 from core.behaviour import Behaviour
 from core.errors import ConfigError
-from core.record import RunRecord
+from core.record import Simulate
 from core.registry import Kind, Registry
 from core.time import to_ticks
 from gateway.behaviour import NetworkBehaviour
@@ -77,8 +77,6 @@ from runtime.specs import (
 __all__ = [
     "RESERVED_NODES",
     "NODE_KINDS",
-    "NodeBuild",
-    "Simulate",
     "BehaviourBuild",
     "ClockConfig",
     "PlantNodeConfig",
@@ -98,13 +96,8 @@ __all__ = [
 
 RESERVED_NODES = ("clock", "historian")
 
-Simulate = Callable[["Scenario"], RunRecord]
-"""Runs a scenario to its record (:func:`runtime.direct.simulate`)."""
-
 _C = TypeVar("_C", bound=BaseModel)
 
-NodeBuild = Callable[[str, "Scenario", Simulate], Behaviour]
-"""``build(name, scenario, simulate)``: the behaviour of node ``name``."""
 
 _STRICT = ConfigDict(frozen=True, extra="forbid")
 
@@ -876,6 +869,10 @@ class Scenario(BaseModel):
     def carriers(self) -> list[str]:
         """The nodes that carry loops: wired networks and WSN gateways, sorted."""
         return sorted(self.nodes_of(NetworkNodeConfig) | self.nodes_of(GatewayNodeConfig))
+
+    def gateways(self) -> list[str]:
+        """The WSN gateways, sorted."""
+        return sorted(self.nodes_of(GatewayNodeConfig))
 
     def is_wireless(self, network: str) -> bool:
         """Whether ``network`` routes its loops over a WSN topology (a gateway), rather than a

@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
 from agents.wncsca.model import LoopModel
-from core.record import RunRecord
+from core.record import RunRecord, Simulate
 from core.time import to_ticks, to_units
 
 __all__ = ["ScenarioTrials", "Simulate", "loop_model", "coordinator", "agent_config"]
@@ -32,8 +32,6 @@ __all__ = ["ScenarioTrials", "Simulate", "loop_model", "coordinator", "agent_con
 Scenario = Any
 """A validated :class:`runtime.scenario.Scenario` (not imported: it is a layer above)."""
 
-Simulate = Callable[[Scenario], RunRecord]
-"""Runs a scenario to its record: :func:`runtime.direct.simulate`."""
 
 _NET = "wncsca_model_network"
 _OPERATOR = "wncsca_model_operator"

@@ -22,18 +22,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from core.registry import Kind, Registry
-
-ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = (
-    "bus_schemas",
-    "core",
-    "plants",
-    "controllers",
-    "gateway",
-    "agents",
-    "kernel",
-    "runtime",
-)
+from tests.test_layers import PACKAGES, ROOT
 
 
 class _A(BaseModel):
@@ -117,6 +106,17 @@ print(json.dumps({"y": loop.y, "u": loop.u, "t": loop.t, "sp": loop.setpoints}))
 """
 
 
+def _run(tree: Path, scenario: Path) -> subprocess.CompletedProcess[str]:
+    """``scenario`` on the direct engine in a fresh process importing the packages of ``tree``."""
+    return subprocess.run(
+        [sys.executable, "-c", RUN, str(tree), str(scenario)],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=scenario.parent,
+    )
+
+
 def _copy_with_law(tree: Path) -> None:
     for pkg in PACKAGES:
         shutil.copytree(ROOT / pkg, tree / pkg, ignore=shutil.ignore_patterns("__pycache__"))
@@ -158,13 +158,7 @@ def test_a_new_law_is_a_module_and_a_registry_entry(tmp_path):
     data["nodes"]["level_controller"]["law"] = law
     scenario = tmp_path / "prop.yaml"
     scenario.write_text(yaml.safe_dump(data))
-    done = subprocess.run(
-        [sys.executable, "-c", RUN, str(tree), str(scenario)],
-        capture_output=True,
-        text=True,
-        check=False,
-        cwd=tmp_path,
-    )
+    done = _run(tree, scenario)
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     setpoints = sorted(out["sp"])
@@ -178,11 +172,5 @@ def test_a_new_law_is_a_module_and_a_registry_entry(tmp_path):
     assert clipped < len(out["u"])  # the law acted, not only its limits
 
     # the same scenario is refused by the project as it is: no such law
-    refused = subprocess.run(
-        [sys.executable, "-c", RUN, str(ROOT), str(scenario)],
-        capture_output=True,
-        text=True,
-        check=False,
-        cwd=tmp_path,
-    )
+    refused = _run(ROOT, scenario)
     assert refused.returncode != 0 and "'prop'" in refused.stderr
