@@ -5,6 +5,7 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 
 from bus_schemas.bodies import (
     Decision,
+    DelayDistribution,
     Done,
     Estimate,
     InjectRequest,
@@ -33,6 +34,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "Envelope",
     "Decision",
+    "DelayDistribution",
     "Done",
     "Estimate",
     "InjectRequest",

@@ -17,6 +17,7 @@ __all__ = [
     "PlantState",
     "Loss",
     "NetApplied",
+    "DelayDistribution",
     "PathConfig",
     "NodeStats",
     "NetStats",
@@ -118,6 +119,49 @@ class Loss(BaseModel):
     t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
 
 
+class DelayDistribution(BaseModel):
+    """A path's delay distribution for the coordination agent (issue 14): the delays of delivered
+    packets at increasing probabilities (the quantile function, piecewise linear between the
+    points), a compact histogram, and the probability that a packet is lost.
+
+    ``source`` says where it comes from: ``model`` (the gateway's per-hop models, retries and
+    loss composed by seeded Monte Carlo, :func:`gateway.distribution.predict`) or ``measured``
+    (time stamps of the packets the path carried).
+    """
+
+    model_config = _FROZEN
+
+    source: Literal["model", "measured"]
+    probabilities: tuple[Finite, ...] = Field(
+        min_length=2, description="increasing, from 0 to 1: where the quantiles are taken"
+    )
+    delays: tuple[Finite, ...] = Field(
+        min_length=2, description="delay of a delivered packet at each probability, time units"
+    )
+    loss: Finite = Field(ge=0, le=1, description="probability that a packet is lost")
+    count: int = Field(ge=0, description="packets the distribution rests on (sent)")
+    edges: tuple[Finite, ...] = Field(default=(), description="histogram bin edges, time units")
+    counts: tuple[int, ...] = Field(default=(), description="delivered packets per bin")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> DelayDistribution:
+        p, d = self.probabilities, self.delays
+        if len(p) != len(d):
+            raise ValueError(f"delays: {len(d)} values for {len(p)} probabilities")
+        if p[0] != 0.0 or p[-1] != 1.0 or any(b <= a for a, b in zip(p, p[1:], strict=False)):
+            raise ValueError("probabilities: must increase strictly from 0 to 1")
+        for k, v in enumerate(d):
+            if v < 0:
+                raise ValueError(f"delays.{k}: a delay must be >= 0, got {v}")
+        if any(b < a for a, b in zip(d, d[1:], strict=False)):
+            raise ValueError("delays: must not decrease (a quantile function)")
+        if len(self.edges) != (len(self.counts) + 1 if self.counts else 0):
+            raise ValueError(f"edges: {len(self.edges)} edges for {len(self.counts)} bins")
+        if any(c < 0 for c in self.counts):
+            raise ValueError("counts: must be >= 0")
+        return self
+
+
 class PathConfig(BaseModel):
     """One routed path of a network configuration, with the paper's three delay estimates."""
 
@@ -127,6 +171,9 @@ class PathConfig(BaseModel):
     route: list[str]
     estimates: dict[str, float | None] = Field(
         description="timestamps / ping / hops -> estimated path delay, time units"
+    )
+    distribution: DelayDistribution | None = Field(
+        default=None, description="the model's delay distribution of the route (None: down)"
     )
 
 
@@ -168,6 +215,9 @@ class PathStats(BaseModel):
     delay_max: float | None
     sent: int = Field(ge=0)
     lost: int = Field(ge=0)
+    distribution: DelayDistribution | None = Field(
+        default=None, description="measured from the time stamps (None: nothing carried yet)"
+    )
 
 
 class NetStats(BaseModel):

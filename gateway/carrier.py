@@ -25,12 +25,13 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from core.time import to_ticks
+from gateway import distribution
 from gateway.energy import EnergyMeter, projected_lifetime
 from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
 from gateway.paths import Route, deliver
@@ -41,6 +42,8 @@ __all__ = ["CarrierSpec", "PathCarrier", "SENSOR", "ACTUATOR", "LINK"]
 SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
 _STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
 _PING_STREAM = {SENSOR: 2, ACTUATOR: 3, LINK: 5}  # and of its ping probes
+_DONE = object()  # a replayed trace has run out
+_MODEL_STREAM = {SENSOR: 6, ACTUATOR: 7, LINK: 8}  # and of its predicted delay distribution
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,9 @@ class CarrierSpec:
     gateway : GatewayNodeConfig or None
         The WSN gateway's configuration (topology, events, energy, ping probes); ``None`` for a
         wired network of constant delays.
+    traces : mapping
+        Wired network: loop -> the sensor-path delays of its samples in order (time units,
+        ``None``: lost), replayed before its constant ``tau_d`` takes over.
     """
 
     node: str
@@ -65,6 +71,7 @@ class CarrierSpec:
     loops: Mapping[str, Any]
     links: Mapping[str, Any]
     gateway: Any = None
+    traces: Mapping[str, Any] = field(default_factory=dict)
 
 
 class PathCarrier:
@@ -73,10 +80,15 @@ class PathCarrier:
     def __init__(self, spec: CarrierSpec) -> None:
         cfg = spec.gateway
         node = self.node = spec.node
+        self._seed = spec.seed
         self.loops = dict(spec.loops)
         self.links = dict(spec.links)
         self._rng: dict[tuple[str, str], np.random.Generator] = {}
         self._const: dict[tuple[str, str], int] = {}
+        self._traces = {
+            (loop, SENSOR): iter([None if d is None else to_ticks(d) for d in trace])
+            for loop, trace in spec.traces.items()
+        }
         self.routes: dict[tuple[str, str], Route | None] = {}
         topology = None
         self.wireless = cfg is not None
@@ -192,21 +204,41 @@ class PathCarrier:
                 "ping": None,
                 "hops": None,
             }
+            predicted = None
             if route is not None:
                 ping = ping_estimate(route, t, self._ping_rng[path], probes=self._ping_probes)
                 estimates["ping"] = _finite(ping.tau_d)
                 estimates["hops"] = _finite(hops_estimate(route).tau_d)
+                predicted = self._predicted(path, route, t)
             self.stamps[path].reset()
             out[f"{loop}.{direction}"] = {
                 "hops": -1 if route is None else route.n_hops,
                 "route": [] if route is None else list(route.nodes),
                 "estimates": estimates,
+                "distribution": predicted,
             }
         return out
 
+    def _predicted(self, path: tuple[str, str], route: Route, t: int) -> dict[str, Any]:
+        """The model's delay distribution of ``route`` (:func:`gateway.distribution.predict`),
+        drawn from a generator of its own, seeded by the path and ``t``: the same route proposed
+        at the same time gets the same prediction in every engine."""
+        loop, direction = path
+        rng = np.random.default_rng(
+            [
+                self._seed,
+                zlib.crc32(self.node.encode()),
+                zlib.crc32(loop.encode()),
+                _MODEL_STREAM[direction],
+                t,
+            ]
+        )
+        return distribution.predict(route, t, rng).model_dump()
+
     def path_stats(self, t: int) -> dict[str, dict[str, Any]]:
         """Per routed path: hops now, and of the packets it was given that are due by ``t``:
-        delivered delays (mean, p95, max; time units), sent, lost."""
+        delivered delays (mean, p95, max; time units), sent, lost, and their distribution
+        (:func:`gateway.distribution.measured`)."""
         out = {}
         for (loop, direction), route in sorted(self.routes.items()):
             done = [(r, d) for r, d in self.carried[loop, direction] if d is None or d <= t]
@@ -218,6 +250,7 @@ class PathCarrier:
                 "delay_max": float(delays.max()) if len(delays) else None,
                 "sent": len(done),
                 "lost": sum(1 for _, d in done if d is None),
+                "distribution": _dumped(distribution.measured(done)),
             }
         return out
 
@@ -255,6 +288,11 @@ class PathCarrier:
     def deliver(self, loop: str, direction: str, t_ready: int) -> int | None:
         """Delivery time (ticks) of a packet ready at ``t_ready``; ``None`` if it is lost.
         ``loop`` is the link's name for ``direction == LINK``."""
+        trace = self._traces.get((loop, direction))
+        if trace is not None:
+            replayed = next(trace, _DONE)
+            if replayed is not _DONE:
+                return None if replayed is None else t_ready + replayed
         const = self._const.get((loop, direction))
         if const is not None:
             return t_ready + const
@@ -269,6 +307,10 @@ class PathCarrier:
         if delivery.t_deliver is not None:
             self.stamps[loop, direction].add(t_ready, delivery.t_deliver)
         return delivery.t_deliver
+
+
+def _dumped(dist: Any) -> dict[str, Any] | None:
+    return None if dist is None else dist.model_dump()
 
 
 def _finite(value: float) -> float | None:

@@ -30,7 +30,7 @@ import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 import yaml
@@ -235,6 +235,12 @@ class NetworkNodeConfig(BaseModel):
     model_config = _STRICT
 
     kind: Literal["network"]
+    traces: dict[str, list[Annotated[float, Field(ge=0, allow_inf_nan=False)] | None]] = Field(
+        default_factory=dict,
+        description="loop -> sensor-path delay of its 1st, 2nd, ... sample, time units (null: "
+        "the sample is lost); after the last, the loop's tau_d. A recorded or drawn delay "
+        "sequence replayed on a wired path (the coordination agent's realizations)",
+    )
 
 
 class ScheduledEvent(BaseModel):
@@ -531,6 +537,13 @@ class Scenario(BaseModel):
                     raise ValueError(
                         f"nodes.{name}.loops[{i}]: unknown loop {lname!r} "
                         f"(loops: {sorted(self.loops)})"
+                    )
+        for name, node in self.nodes.items():
+            for lname in getattr(node, "traces", {}) if isinstance(node, NetworkNodeConfig) else ():
+                carried = self.loops.get(lname)
+                if carried is None or carried.network != name:
+                    raise ValueError(
+                        f"nodes.{name}.traces.{lname}: no loop {lname!r} is carried by {name!r}"
                     )
         controlled: dict[str, str] = {}
         for lname, loop in self.loops.items():

@@ -103,6 +103,7 @@ def carrier_spec(scenario: Scenario, name: str) -> CarrierSpec:
         loops={n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == name},
         links={n: lk for n, lk in sorted(scenario.links.items()) if lk.network == name},
         gateway=scenario.nodes[name] if scenario.is_wireless(name) else None,
+        traces={} if scenario.is_wireless(name) else dict(scenario.nodes[name].traces),
     )
 
 

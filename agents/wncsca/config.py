@@ -137,7 +137,30 @@ class WncscaConfig(BaseModel):
         "to the sampling instants, or at the test's own step times (the paper)",
     )
     phases: int = Field(default=4, ge=1, le=64, description="phases tried in the worst case")
-    method: Literal["paper", "fast"] = "paper"
+    method: Literal["paper", "fast", "chance"] = Field(
+        default="chance",
+        description="paper: seed 000's successive approximation at the mean delay, exactly; "
+        "fast: the same question on the linearised loops; chance: the paper's searches on the "
+        "risk of the proposal's delay distribution, P(overshoot <= limit) >= confidence "
+        "(agents/wncsca/chance.py)",
+    )
+    confidence: float = Field(
+        default=0.95,
+        gt=0,
+        lt=1,
+        description="chance method: the probability with which every loop's overshoot of a "
+        "step must stay within the limit, over delays, losses and step phases",
+    )
+    realizations: int = Field(
+        default=400, ge=16, le=20000, description="chance method: Monte Carlo realizations"
+    )
+    checks: int = Field(
+        default=12,
+        ge=1,
+        le=1000,
+        description="chance method: realizations replayed on the non-linear model to correct "
+        "the linearisation",
+    )
     objective: Literal["paper", "energy"] = Field(
         default="paper",
         description="fast method: each loop's longest period with the others fixed (the "

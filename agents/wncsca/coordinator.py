@@ -30,9 +30,17 @@ from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
+from agents.wncsca.chance import ChanceModel
 from agents.wncsca.config import MODES, WncscaConfig
-from agents.wncsca.decision import Decision, ProposalError, decide, path_delay
+from agents.wncsca.decision import (
+    Decision,
+    ProposalError,
+    control_path_delays,
+    decide,
+    path_delay,
+)
 from agents.wncsca.fast import fast_periods
+from agents.wncsca.guarantee import chance_periods, path_laws
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
@@ -166,7 +174,14 @@ class Coordinator:
                 p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.scenario.links
             }
             paths = {p: e for p, e in paths.items() if p not in link_paths}
-        decision = decide(pid, paths, self.bounds, self.config.estimate, wired=others)
+        risk: Assignment | None = None
+        if self.config.method == "chance" and self.carried[network]:
+            try:
+                decision, risk = self._judge_by_risk(network, pid, paths, others)
+            except ProposalError as err:
+                return self._refused(network, pid, str(err))
+        else:
+            decision = decide(pid, paths, self.bounds, self.config.estimate, wired=others)
         if decision.verdict == "refuse":
             return Negotiation(decision, network)
         try:
@@ -188,13 +203,63 @@ class Coordinator:
         if not self.carried[network]:  # a network carrying links only: no periods to negotiate
             return Negotiation(decision, network, links=links)
         weights = _weights(paths, self.loops)
-        result = assign(self.model, self.delays, weights)
+        result = risk if risk is not None else assign(self.model, self.delays, weights)
         if result.feasible:
             self.control_periods = dict(result.periods)
         self.predicted = dict(result.overshoot_pct)
         self.method = result.method
         energy = self.energy(network, paths)
         return Negotiation(decision, network, result, energy, links)
+
+    def _judge_by_risk(
+        self, network: str, pid: int, paths: Any, others: Mapping[str, float]
+    ) -> tuple[Decision, Assignment | None]:
+        """III.E steps 2-3 on the risk (the chance method): the proposal is accepted when
+        periods exist that keep every loop's ``P(overshoot <= limit) >= confidence`` under its
+        delay distribution (found by the paper's search on the risk, checked on the non-linear
+        model: :func:`agents.wncsca.guarantee.chance_periods`), else rejected naming the loops.
+
+        Raises
+        ------
+        ProposalError
+            A malformed proposal (the caller refuses it).
+        """
+        carried = tuple(self.carried[network])
+        delays, used = control_path_delays(paths, carried, self.config.estimate)
+        laws = path_laws(paths, carried)
+        down = [n for n, d in delays.items() if d is None]
+        known = {**others, **{n: float(d) for n, d in delays.items() if d is not None}}
+        if down:
+            reasons = tuple(f"{n}: control path down (no route)" for n in down)
+            return Decision(pid, "reject", reasons, known, {}, used, tuple(down)), None
+        model = ChanceModel(self.model, laws, seed=self.scenario.seed)
+        model.check(self.benchmark, known)  # the linearisation corrected at the start point
+        result = chance_periods(model, known)
+        guarantee = result.extra["guarantee"]
+        limit, conf = self.config.overshoot_limit, self.config.confidence
+        lines = []
+        for n in self.loops:
+            pr = guarantee["probability"][n]
+            law = guarantee["laws"].get(n)
+            what = (
+                f"delay mean {law['mean']:.4g}, p95 {law['p95']:.4g}, loss {law['loss']:.2g}"
+                if law is not None and n in carried
+                else f"delay {known[n]:.4g}"
+            )
+            lines.append(
+                f"{n}: P(overshoot <= {limit:g} %) = {pr['p']:.3f} "
+                f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
+                f"{result.periods[n]:g} ({what})"
+            )
+        if result.feasible:
+            return Decision(pid, "accept", tuple(lines), known, {}, used), result
+        offending = tuple(n for n in carried if guarantee["probability"][n]["p"] < conf) or carried
+        reasons = (
+            f"no sampling periods keep P(overshoot <= {limit:g} %) >= {conf:g}: "
+            f"{result.reason or 'search infeasible'}",
+            *lines,
+        )
+        return Decision(pid, "reject", reasons, known, {}, used, offending), None
 
     def _link_delays(self, network: str, link_paths: Mapping[str, Any]) -> dict[str, float]:
         """Delay of every link of ``network`` from its path in a proposal (``inf``: no route)."""

@@ -136,14 +136,19 @@ class LoopModel:
         phase = (k, n) if self.config.phase == "worst" else None
         self.simulations += 1
         rec = self.trials.run(periods, delays, phase)
+        return dict(zip(self.loops, self.overshoots_of(rec), strict=True))
+
+    def overshoots_of(self, rec: RunRecord) -> list[float]:
+        """Each loop's overshoot (%) in a trial's record, in :attr:`loops` order (``inf``:
+        diverged)."""
         diverged = {
             name
             for name, plant in rec.plants.items()
             if not all(math.isfinite(v) for row in plant.x for v in row)
         }
-        out = {}
+        out = []
         for name in self.loops:
             os_pct = loop_metrics(rec, name)["overshoot_pct"]
             bad = os_pct is None or not math.isfinite(os_pct)
-            out[name] = math.inf if bad or rec.loops[name].plant in diverged else os_pct
+            out.append(math.inf if bad or rec.loops[name].plant in diverged else os_pct)
         return out

@@ -146,6 +146,33 @@ class ScenarioTrials:
         """One trial on the direct engine."""
         return self._simulate(self.scenario_at(periods, delays, phase))
 
+    def run_replay(
+        self,
+        periods: Mapping[str, float],
+        delays: Mapping[str, float],
+        traces: Mapping[str, list[float | None]],
+        phases: Mapping[tuple[int, str], int],
+        denominator: int,
+    ) -> RunRecord:
+        """One trial on the direct engine with each loop's sensor-path delays replayed from
+        ``traces`` (loop -> delay of each sample, ``None``: lost) and the step at ``(tick,
+        loop)`` moved to ``phases[...] / denominator`` of its loop's period after a sampling
+        instant (the realizations of :mod:`agents.wncsca.chance`)."""
+        trial = self.scenario_at(periods, delays, None)
+        steps = []
+        for step in trial.setpoints:
+            j = phases.get((to_ticks(step.t), step.loop))
+            if j is not None:
+                p = to_ticks(trial.loops[step.loop].tau_s)
+                t = to_ticks(step.t)
+                step = step.model_copy(
+                    update={"t": to_units((t // p) * p + (j * p) // denominator)}
+                )
+            steps.append(step)
+        net = type(trial.nodes[_NET]).model_validate({"kind": "network", "traces": dict(traces)})
+        nodes = {**trial.nodes, _NET: net}
+        return self._simulate(trial.model_copy(update={"setpoints": steps, "nodes": nodes}))
+
 
 def agent_config(scenario: Scenario) -> WncscaConfig:
     """The configuration of the scenario's agent node, or the defaults if it has none."""

@@ -1,0 +1,533 @@
+"""The chance-constrained guarantee of the coordination agent (issue 14): the overshoot of a
+candidate configuration as a random variable over delay realizations, losses and step phases.
+
+The paper's method (seed 000, III.E) judges a configuration by simulating its loops with a
+*constant* delay, the mean. On the network the gateway emulates, each sample meets its own delay
+and some are lost, so the overshoot of a step is random; the agent must assign periods that keep
+``P(overshoot <= limit) >= confidence`` for every loop.
+
+Model
+-----
+:class:`LinearMonteCarlo` simulates the agent's set-point test on the loops linearised at the
+equilibrium of the initial set points (the plant data of :class:`agents.wncsca.fast.
+LinearPredictor`: central-difference Jacobians, the steady-state feedforward of each stretch of
+the test), for ``R`` realizations at once in numpy. In realization ``r``:
+
+* loop ``i`` samples at ``k h_i``; sample ``k`` is lost with the loop's loss probability, else
+  delivered after ``max(0, mu_i + delta_rk)``: ``mu_i`` the control-path mean delay being judged,
+  ``delta`` a draw of the proposal's distribution minus its mean (its *shape*, held while ``mu``
+  varies: so the delay bound is a bound on the mean with that shape);
+* at each delivery the loop's PI (:mod:`controllers.pi`: forward or backward integral over the
+  actual time between executions, clamping anti-windup, output limits, the feedforward of the set
+  points in force) executes with the delivered value; a lost sample leaves the input held, as on
+  the bus; a late sample overtaken by a newer one is still executed, as the controller node does;
+* each test step falls at a random phase ``j / 64`` of its loop's period after a sampling instant
+  (``j`` uniform), the phases the paper's ``phase: worst`` tries at 4 points;
+* between events the plant is LTI, so the state moves exactly (modal exponentials), and the output
+  is read on the plant's monitoring grid, where :func:`core.record.loop_metrics` reads it.
+
+The draws are common random numbers: every evaluation of one model reuses the same uniforms, so
+candidate periods are compared on the same realizations and the searches see a deterministic,
+reproducible function.
+
+Guarantee
+---------
+``P(overshoot <= limit) >= confidence`` is estimated by the share of realizations within the
+limit (the sample-average approximation): at most ``k_max = floor((1 - confidence) R)`` of the
+``R`` realizations may exceed it, i.e. the ``(R - k_max)``-th smallest overshoot must be within
+the limit. That order statistic is the *risk overshoot* the searches of
+:mod:`agents.wncsca.paper` and :mod:`agents.wncsca.bounds` compare with the limit, unchanged.
+Every decision reports the estimate with its two-sided 95 % Clopper-Pearson interval.
+
+The linearisation's error is corrected on the non-linear model (:class:`ChanceModel`): the first
+``checks`` realizations are replayed on the direct engine (their delay sequences on a wired path,
+``traces:``; their phases exactly), and the mean paired difference of the overshoots is added to
+the linear ones.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.stats
+from numpy.typing import NDArray
+
+from agents.wncsca.fast import LinearPredictor, _phi1
+from agents.wncsca.model import Evaluation, LoopModel
+from core.time import TICKS_PER_UNIT, to_ticks, to_units
+
+__all__ = [
+    "PHASES",
+    "LoopLaw",
+    "risk_index",
+    "probability_interval",
+    "LinearMonteCarlo",
+    "ChanceModel",
+]
+
+PHASES = 64
+"""Step phases are ``j / PHASES`` of the loop's period after a sampling instant."""
+
+_MONITOR, _SAMPLE, _DELIVER, _STEP, _NONE = 0, 1, 2, 3, 4
+
+
+@dataclass(frozen=True)
+class LoopLaw:
+    """A loop's delay law for the realizations: the shape (draws minus their mean, time units,
+    a quantile table ``(probabilities, delays)``) and the loss probability."""
+
+    probabilities: tuple[float, ...] = (0.0, 1.0)
+    delays: tuple[float, ...] = (0.0, 0.0)
+    loss: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.loss < 1.0:
+            raise ValueError(f"loss: must be in [0, 1), got {self.loss}")
+
+    @property
+    def mean(self) -> float:
+        p, d = np.asarray(self.probabilities), np.asarray(self.delays)
+        return float(np.sum(np.diff(p) * (d[1:] + d[:-1]) / 2.0))
+
+    def deviations(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Draws minus the mean, by the inverse CDF at the uniforms ``u``."""
+        return np.interp(u, self.probabilities, self.delays) - self.mean
+
+
+def risk_index(realizations: int, confidence: float) -> int:
+    """``k_max``: the most of ``realizations`` that may exceed the limit,
+    ``floor((1 - confidence) R)`` (the sample-average approximation of the chance constraint;
+    the 95 % interval of the probability is reported beside it, :func:`probability_interval`)."""
+    return int(math.floor((1.0 - confidence) * realizations + 1e-9))
+
+
+def probability_interval(within: int, total: int) -> tuple[float, float]:
+    """Two-sided 95 % Clopper-Pearson interval of ``P(within)`` from ``within`` of ``total``."""
+    lo = 0.0 if within == 0 else float(scipy.stats.beta.ppf(0.025, within, total - within + 1))
+    hi = 1.0 if within == total else float(scipy.stats.beta.ppf(0.975, within + 1, total - within))
+    return lo, hi
+
+
+class LinearMonteCarlo:
+    """The agent's test on the linearised loops over ``realizations`` random realizations (see
+    the module docstring).
+
+    Parameters
+    ----------
+    model : LoopModel
+        The agent's model (its trial scenario, test, loops and PI laws).
+    laws : mapping
+        Loop -> :class:`LoopLaw` (default: constant delay, no loss).
+    realizations : int
+        Realizations ``R``.
+    seed : int
+        Seed of the common random numbers.
+
+    Raises
+    ------
+    ValueError
+        A loop's law is not ``pi``, or the linearised plant is not diagonalisable.
+    """
+
+    def __init__(
+        self,
+        model: LoopModel,
+        laws: Mapping[str, LoopLaw],
+        realizations: int,
+        seed: int,
+    ) -> None:
+        lin = LinearPredictor(model, {})
+        self.loops = lin.loops
+        self.R = realizations
+        self.laws = {n: laws.get(n, LoopLaw()) for n in self.loops}
+        self.pi = lin.laws
+        self.end = to_units(lin.end)
+        plants = list(lin.plants.values())
+        # one state vector: the plants' states stacked
+        offsets, nx, nu = {}, 0, 0
+        for p in plants:
+            offsets[p.name] = (nx, nu)
+            nx += len(p.x0)
+            nu += len(p.u0)
+        self.x0 = np.zeros(nx)
+        self.u0 = np.zeros(nu)
+        self.u_col: dict[str, int] = {}
+        self.monitor = min(p.monitor for p in plants)
+        for p in plants:
+            ox, ou = offsets[p.name]
+            self.x0[ox : ox + len(p.x0)] = p.x0
+            self.u0[ou : ou + len(p.u0)] = p.u0
+            for name in p.loops:
+                self.u_col[name] = ou + p.u_index[name]
+        # the test's steps: stage s holds the set points after the first s steps
+        self.steps = sorted(lin.steps)
+        sp = dict(lin.initial)
+        stage_sp = [dict(sp)]
+        for _, loop, value in self.steps:
+            sp[loop] = value
+            stage_sp.append(dict(sp))
+        n_loops = len(self.loops)
+        S = len(stage_sp)
+        self.ubar = np.zeros((S, n_loops))
+        self.lam = np.zeros((S, nx), dtype=complex)
+        self.V = np.zeros((S, nx, nx), dtype=complex)
+        self.Vi = np.zeros((S, nx, nx), dtype=complex)
+        self.ViB = np.zeros((S, nx, nu), dtype=complex)
+        self.Vic = np.zeros((S, nx), dtype=complex)
+        self.CyV = np.zeros((S, n_loops, nx), dtype=complex)
+        self.y0 = np.zeros((S, n_loops))
+        for k, values in enumerate(stage_sp):
+            # each stretch of the test on the plants linearised at the equilibrium holding its
+            # set points (as the fast method does), switched in at the step
+            A = np.zeros((nx, nx))
+            B = np.zeros((nx, nu))
+            c = np.zeros(nx)
+            Cy = np.zeros((n_loops, nx))
+            for p in plants:
+                ox, ou = offsets[p.name]
+                n_x, n_u = len(p.x0), len(p.u0)
+                key = tuple(values[n] for n in p.loops)
+                Ap, Bp, Cp, y0, x_bar, u_bar, f0 = p.linearization(key)
+                A[ox : ox + n_x, ox : ox + n_x] = Ap
+                B[ox : ox + n_x, ou : ou + n_u] = Bp
+                c[ox : ox + n_x] = f0 - Ap @ x_bar - Bp @ u_bar
+                row = p.u_bar(key)
+                for j, name in enumerate(p.loops):
+                    i = self.loops.index(name)
+                    Cy[i, ox : ox + n_x] = Cp[p.y_index[name]]
+                    self.y0[k, i] = y0[p.y_index[name]]
+                    self.ubar[k, i] = row[j]
+            lam, V = np.linalg.eig(A)
+            if not np.isfinite(lam).all() or np.linalg.cond(V) > 1e8:
+                raise ValueError("chance model: the linearised plant is not diagonalisable")
+            Vi = np.linalg.inv(V)
+            self.lam[k], self.V[k], self.Vi[k] = lam, V, Vi
+            self.ViB[k], self.Vic[k], self.CyV[k] = Vi @ B, Vi @ c, Cy @ V
+        self.initial = np.array([lin.initial[n] for n in self.loops])
+        rng = np.random.default_rng(seed)
+        horizon = int(self.end / min(1e-3, self.monitor)) + 2
+        # common random numbers, as many as the shortest period could use
+        self._u_delay = rng.random((n_loops, self.R, horizon))
+        self._u_loss = rng.random((n_loops, self.R, horizon))
+        self.phase_j = rng.integers(0, PHASES, size=(len(self.steps), self.R))
+        self.simulations = 0
+
+    # -- one evaluation -----------------------------------------------------------------------
+    def overshoots(
+        self, periods: Mapping[str, float], delays: Mapping[str, float]
+    ) -> NDArray[np.float64]:
+        """Overshoot (%) of every loop's steps (worst over its steps) in every realization:
+        shape ``(R, loops)``; ``inf`` where the linear loop diverged."""
+        self.simulations += 1
+        R, loops = self.R, self.loops
+        h = {n: to_units(to_ticks(periods[n])) for n in loops}
+        mu = {n: float(delays.get(n, 0.0)) for n in loops}
+        times, kinds, who, index = [], [], [], []
+
+        def add(t: NDArray[np.float64], kind: int, w: int, k: NDArray[np.int64]) -> None:
+            times.append(t)
+            kinds.append(np.full(t.shape, kind))
+            who.append(np.full(t.shape, w))
+            index.append(np.broadcast_to(k, t.shape))
+
+        grid = np.arange(0.0, self.end + 1e-12, self.monitor)
+        add(np.broadcast_to(grid, (R, len(grid))), _MONITOR, 0, np.zeros(len(grid), np.int64))
+        n_samples = {}
+        for i, n in enumerate(loops):
+            ks = np.arange(int(math.floor(self.end / h[n] + 1e-9)) + 1)
+            n_samples[n] = len(ks)
+            if len(ks) > self._u_delay.shape[2]:
+                raise ValueError(f"chance model: period of {n!r} too short ({h[n]})")
+            t_s = np.broadcast_to(ks * h[n], (R, len(ks)))
+            add(t_s, _SAMPLE, i, ks)
+            law = self.laws[n]
+            d = np.maximum(0.0, mu[n] + law.deviations(self._u_delay[i, :, : len(ks)]))
+            d = np.rint(d * TICKS_PER_UNIT) / TICKS_PER_UNIT
+            lost = self._u_loss[i, :, : len(ks)] < law.loss
+            t_d = np.where(lost, np.inf, t_s + d)
+            add(t_d, _DELIVER, i, ks)
+        step_t = np.zeros((len(self.steps), R))
+        for s, (tick, loop, _) in enumerate(self.steps):
+            p = to_ticks(h[loop])
+            base = (tick // p) * p
+            step_t[s] = to_units(base + (self.phase_j[s] * p) // PHASES)
+            add(step_t[s][:, None], _STEP, s, np.zeros(1, np.int64))
+        T = np.concatenate(times, axis=1)
+        K = np.concatenate(kinds, axis=1)
+        W = np.concatenate(who, axis=1)
+        Ix = np.concatenate(index, axis=1)
+        # at one instant: a sample before its zero-delay delivery (the bus delivers it in a
+        # later round), the step before the execution, the monitor after the move
+        rank = np.array([3, 0, 2, 1, 4])  # by kind: monitor, sample, deliver, step, none
+        order_key = rank[K]
+        order = np.lexsort((order_key, T), axis=1)
+        T = np.take_along_axis(T, order, axis=1)
+        K = np.take_along_axis(K, order, axis=1)
+        W = np.take_along_axis(W, order, axis=1)
+        Ix = np.take_along_axis(Ix, order, axis=1)
+        K = np.where(T > self.end + 1e-12, _NONE, K)
+        return self._run(T, K, W, Ix, n_samples, step_t)
+
+    def _run(
+        self,
+        T: NDArray[np.float64],
+        K: NDArray[np.int64],
+        W: NDArray[np.int64],
+        Ix: NDArray[np.int64],
+        n_samples: Mapping[str, int],
+        step_t: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        R, loops = self.R, self.loops
+        rows = np.arange(R)
+        stage = np.zeros(R, dtype=np.int64)
+        z = np.tile(self.Vi[0] @ self.x0, (R, 1))
+        u = np.tile(self.u0, (R, 1))
+
+        def forcing() -> NDArray[np.complex128]:
+            return np.einsum("rnu,ru->rn", self.ViB[stage], u) + self.Vic[stage]
+
+        def output() -> NDArray[np.float64]:
+            return np.einsum("rln,rn->rl", self.CyV[stage], z).real + self.y0[stage]
+
+        w = forcing()
+        t_prev = np.zeros(R)
+        r = np.tile(self.initial, (R, 1))
+        buf = {n: np.zeros((R, n_samples[n])) for n in loops}
+        integral = np.zeros((R, len(loops)))
+        e_prev = np.zeros((R, len(loops)))
+        t_exec = np.full((R, len(loops)), np.nan)
+        ext = np.full((R, len(self.steps)), -np.inf)
+        # per step: its loop, direction, target, and its window's end (the loop's next step)
+        s_loop = [loops.index(loop) for _, loop, _ in self.steps]
+        s_from, s_to = [], []
+        current = dict(zip(loops, self.initial, strict=True))
+        for _, loop, value in self.steps:
+            s_from.append(current[loop])
+            s_to.append(value)
+            current[loop] = value
+        s_end = np.full((len(self.steps), R), np.inf)
+        for s in range(len(self.steps)):
+            later = [q for q in range(s + 1, len(self.steps)) if s_loop[q] == s_loop[s]]
+            if later:
+                s_end[s] = step_t[later[0]]
+        sign = np.sign(np.array(s_to) - np.array(s_from))
+        for e in range(T.shape[1]):
+            kind = K[:, e]
+            live = kind != _NONE
+            if not live.any():
+                break
+            t = np.where(live, T[:, e], t_prev)
+            tau = (t - t_prev)[:, None]
+            if (tau > 0).any():
+                lt = self.lam[stage] * tau
+                ez = np.exp(lt)
+                z = ez * z + tau * _phi1(lt, ez) * w
+            t_prev = t
+            y = None
+            mon = kind == _MONITOR
+            if mon.any():
+                y = output()
+                for s in range(len(self.steps)):
+                    act = mon & (t >= step_t[s]) & (t < s_end[s])
+                    if act.any():
+                        i = s_loop[s]
+                        v = sign[s] * (y[:, i] - s_to[s])
+                        ext[:, s] = np.where(act, np.maximum(ext[:, s], v), ext[:, s])
+            for i, n in enumerate(loops):
+                smp = (kind == _SAMPLE) & (W[:, e] == i)
+                if smp.any():
+                    if y is None:
+                        y = output()
+                    buf[n][rows[smp], Ix[smp, e]] = y[smp, i]
+                dlv = (kind == _DELIVER) & (W[:, e] == i)
+                if dlv.any():
+                    u = self._execute(
+                        i, n, dlv, t, buf[n][rows, np.where(dlv, Ix[:, e], 0)], r, stage, integral, e_prev, t_exec, u
+                    )
+                    w = forcing()
+            stp = kind == _STEP
+            if stp.any():
+                for s in np.unique(W[stp, e]):
+                    m = stp & (W[:, e] == s)
+                    r[m, s_loop[s]] = s_to[s]
+                    x = np.einsum("rij,rj->ri", self.V[stage[m]], z[m]).real
+                    stage[m] += 1
+                    z[m] = np.einsum("rij,rj->ri", self.Vi[stage[m]], x.astype(complex))
+                w = forcing()
+        size = np.abs(np.array(s_to) - np.array(s_from))
+        os_steps = 100.0 * np.maximum(ext, 0.0) / np.where(size > 0, size, np.inf)
+        out = np.zeros((R, len(loops)))
+        for s in range(len(self.steps)):
+            out[:, s_loop[s]] = np.maximum(out[:, s_loop[s]], os_steps[:, s])
+        diverged = ~np.isfinite(z).all(axis=1) | (np.abs(z) > 1e12).any(axis=1)
+        out[diverged] = np.inf
+        return out
+
+    def _execute(
+        self,
+        i: int,
+        name: str,
+        mask: NDArray[np.bool_],
+        t: NDArray[np.float64],
+        y: NDArray[np.float64],
+        r: NDArray[np.float64],
+        stage: NDArray[np.int64],
+        integral: NDArray[np.float64],
+        e_prev: NDArray[np.float64],
+        t_exec: NDArray[np.float64],
+        u: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """The PI of loop ``i`` (:class:`controllers.pi.PI`) executes in the masked
+        realizations at ``t`` on the delivered ``y``."""
+        law = self.pi[name]
+        e = r[:, i] - y
+        first = np.isnan(t_exec[:, i])
+        dt = np.where(first, 0.0, t - np.nan_to_num(t_exec[:, i]))
+        incr = law.ki * (e_prev[:, i] if law.forward else e) * dt
+        ubar = self.ubar[stage, i]
+        v = ubar + law.kp * e + integral[:, i] + incr
+        clamp = ((v > law.u_max) & (incr > 0)) | ((v < law.u_min) & (incr < 0))
+        incr = np.where(clamp, 0.0, incr)
+        new_int = integral[:, i] + incr
+        out = np.clip(ubar + law.kp * e + new_int, law.u_min, law.u_max)
+        integral[:, i] = np.where(mask, new_int, integral[:, i])
+        e_prev[:, i] = np.where(mask, e, e_prev[:, i])
+        t_exec[:, i] = np.where(mask, t, t_exec[:, i])
+        u = u.copy()
+        col = self.u_col[name]
+        u[:, col] = np.where(mask, out, u[:, col])
+        return u
+
+    def traces(
+        self, periods: Mapping[str, float], delays: Mapping[str, float], r: int
+    ) -> tuple[dict[str, list[float | None]], dict[tuple[int, str], int]]:
+        """Realization ``r``'s delay sequence per loop (``None``: lost; time units) and each
+        step's phase numerator (``j`` of ``j / PHASES``), to replay it on the non-linear
+        model."""
+        out: dict[str, list[float | None]] = {}
+        for i, n in enumerate(self.loops):
+            h = to_units(to_ticks(periods[n]))
+            count = int(math.floor(self.end / h + 1e-9)) + 1
+            law = self.laws[n]
+            d = np.maximum(
+                0.0, float(delays.get(n, 0.0)) + law.deviations(self._u_delay[i, r, :count])
+            )
+            lost = self._u_loss[i, r, :count] < law.loss
+            out[n] = [None if x else float(v) for v, x in zip(d, lost, strict=True)]
+        phases = {
+            (tick, loop): int(self.phase_j[s, r]) for s, (tick, loop, _) in enumerate(self.steps)
+        }
+        return out, phases
+
+
+@dataclass
+class ChanceModel:
+    """The agent's model judged by risk: :meth:`evaluate` answers the question of
+    :meth:`agents.wncsca.model.LoopModel.evaluate` with each loop's risk overshoot (the module
+    docstring), so the paper's searches run on it unchanged.
+
+    Parameters
+    ----------
+    base : LoopModel
+        The agent's deterministic model (its non-linear trials check the linear predictions).
+    laws : mapping
+        Loop -> :class:`LoopLaw` of the proposal's control paths.
+    """
+
+    base: LoopModel
+    laws: Mapping[str, LoopLaw]
+    seed: int = 0
+    offsets: dict[str, float] = field(default_factory=dict)
+    _memo: dict[tuple[Any, ...], NDArray[np.float64]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        cfg = self.base.config
+        self.config = cfg
+        self.loops = self.base.loops
+        self.benchmark = dict(self.base.benchmark)
+        self.linear = LinearMonteCarlo(self.base, self.laws, cfg.realizations, self.seed)
+        self.k_max = risk_index(cfg.realizations, cfg.confidence)
+        self.offsets = {n: self.offsets.get(n, 0.0) for n in self.loops}
+        self.checks_run = 0
+        laws = {
+            n: [list(law.probabilities), list(law.delays), law.loss]
+            for n, law in sorted(self.laws.items())
+        }
+        self.fingerprint = hashlib.sha256(
+            json.dumps(
+                [self.base.fingerprint, laws, cfg.realizations, cfg.confidence, self.seed]
+            ).encode()
+        ).hexdigest()[:16]
+
+    @property
+    def simulations(self) -> int:
+        return self.linear.simulations + self.base.simulations
+
+    def samples(
+        self, periods: Mapping[str, float], delays: Mapping[str, float]
+    ) -> NDArray[np.float64]:
+        """Linear overshoots ``(R, loops)``, corrected by the offsets."""
+        per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
+        dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
+        key = (
+            tuple(to_ticks(per[n]) for n in self.loops),
+            tuple(to_ticks(dly[n]) for n in self.loops),
+        )
+        raw = self._memo.get(key)
+        if raw is None:
+            raw = self._memo[key] = self.linear.overshoots(per, dly)
+        return raw + np.array([self.offsets[n] for n in self.loops])
+
+    def evaluate(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> Evaluation:
+        """Risk overshoot of every loop: the ``(R - k_max)``-th smallest realization."""
+        per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
+        dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
+        os = np.sort(self.samples(per, dly), axis=0)
+        risk = os[self.linear.R - 1 - self.k_max]
+        return Evaluation(per, dly, {n: float(risk[i]) for i, n in enumerate(self.loops)}, ())
+
+    def probability(
+        self, periods: Mapping[str, float], delays: Mapping[str, float]
+    ) -> dict[str, dict[str, float]]:
+        """Per loop: the estimated ``P(overshoot <= limit)`` and its 95 % interval."""
+        os = self.samples(periods, delays)
+        limit = self.config.overshoot_limit
+        out = {}
+        for i, n in enumerate(self.loops):
+            within = int(np.sum(os[:, i] <= limit))
+            lo, hi = probability_interval(within, len(os))
+            out[n] = {"p": within / len(os), "low": lo, "high": hi}
+        return out
+
+    def check(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> dict[str, Any]:
+        """Replay the first ``checks`` realizations on the non-linear model and update the
+        offsets to the mean paired difference (non-linear minus linear); returns both sets."""
+        from_trials = self.base.trials
+        per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
+        dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
+        linear = self.samples(per, dly) - np.array([self.offsets[n] for n in self.loops])
+        n_checks = min(self.config.checks, self.linear.R)
+        nonlinear = np.zeros((n_checks, len(self.loops)))
+        for r in range(n_checks):
+            traces, phases = self.linear.traces(per, dly, r)
+            rec = from_trials.run_replay(per, dly, traces, phases, PHASES)
+            nonlinear[r] = self.base.overshoots_of(rec)
+            self.base.simulations += 1
+        self.checks_run += n_checks
+        ok = np.isfinite(nonlinear) & np.isfinite(linear[:n_checks])
+        for i, n in enumerate(self.loops):
+            diff = nonlinear[ok[:, i], i] - linear[:n_checks][ok[:, i], i]
+            self.offsets[n] = float(diff.mean()) if len(diff) else math.inf
+        return {
+            "checks": n_checks,
+            "offsets": dict(self.offsets),
+            "nonlinear_overshoot_pct": {
+                n: [float(v) for v in nonlinear[:, i]] for i, n in enumerate(self.loops)
+            },
+        }
