@@ -26,6 +26,7 @@ __all__ = [
     "open_client",
     "is_put",
     "put_when_heard",
+    "init_zenoh_log",
 ]
 
 Session = zenoh.Session
@@ -37,11 +38,30 @@ DEFAULT_LISTEN = "tcp/127.0.0.1:0"
 _LOG_INIT = False
 
 
-def _init_log() -> None:
+def init_zenoh_log(level: str = "error") -> bool:
+    """Start zenoh's own logging, once per process: ``RUST_LOG`` if set, else ``level``.
+
+    Zenoh logs from Rust (``zenoh.init_log_from_env_or``) straight to the process's standard
+    output, past ``sys.stdout``, so only the first call in a process counts; ``open_router`` and
+    ``open_client`` make it with the default, ``"error"``. ``wncs run`` calls it first with
+    ``"off"``: its process holds the router and, in the threads engine, every node's session,
+    and its standard output is the terminal with the progress line, which zenoh's own lines (an
+    ``ERROR ... Unknown token`` when a liveliness subscriber goes as the clock leaves) would break.
+    The processes engine's node processes keep ``"error"``: their output is ``logs/<node>.log``,
+    so zenoh's errors land in the run's log files. ``RUST_LOG=warn`` (or ``debug``, or a filter
+    such as ``zenoh::net=debug``) shows them in any process.
+
+    Returns
+    -------
+    bool
+        Whether this call started the logging (False: it had been started already).
+    """
     global _LOG_INIT
-    if not _LOG_INIT:
-        zenoh.init_log_from_env_or("error")
-        _LOG_INIT = True
+    if _LOG_INIT:
+        return False
+    zenoh.init_log_from_env_or(level)
+    _LOG_INIT = True
+    return True
 
 
 class BusConfig(BaseModel):
@@ -77,7 +97,7 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
 
 def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]:
     """Open an embedded router listening on ``listen``; return it and its actual locators."""
-    _init_log()
+    init_zenoh_log()
     session = zenoh.open(zenoh_config(BusConfig(mode="router", listen=(listen,))))
     locators: list[str] = []
     for reply in session.get(f"@/{session.info.zid()}/router"):
@@ -91,7 +111,7 @@ def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]
 
 def open_client(connect: str) -> zenoh.Session:
     """Open a client session connected to the router at ``connect``."""
-    _init_log()
+    init_zenoh_log()
     return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))
 
 

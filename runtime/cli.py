@@ -4,7 +4,15 @@
 ``wncs node SCENARIO NAME --connect EP --run-id ID``   run one node of the graph (or ``clock``)
 ``wncs report DIR``                    redraw a run's plots and print its figures
 ``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
+``wncs inject DIR EVENT [KEY=VALUE ...]``  a reconfiguration, mode or set point into a live run
 ``wncs assess DATA --primary COL ...``  Harris index and cascade opportunities of a loop (seed 004)
+``wncs validate SCENARIO ...``         check scenario files without running them
+``wncs schema [--out FILE]``           the scenario files' JSON Schema, for editors
+
+``run``, ``node`` and ``validate`` take ``--set dotted.path=VALUE`` (repeatable,
+:mod:`runtime.overrides`): the value, parsed as YAML, replaces the field in the file's mapping
+before validation. The help texts are plain text (no markup) and end with examples; the
+examples name only shipped scenarios (``tests/unit/test_cli_conveniences.py`` parses them).
 
 Exit codes: 0 success, 2 bad input (scenario, arguments), 3 the run was stopped by a fault,
 1 any other failure.
@@ -17,13 +25,15 @@ import json
 import logging
 import signal
 import sys
+import textwrap
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
 from agents.monitor.command import add_assess_arguments, run_from_args
 from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
-from kernel.bus import open_client
+from kernel.bus import init_zenoh_log, open_client
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE, SCENARIO_FILE
 from runtime.history import load_record
@@ -31,11 +41,66 @@ from runtime.inject import build_request, send
 from runtime.launcher import launch
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.report import load_saved_record, write_plots, write_summary
-from runtime.scenario import load_scenario
+from runtime.scenario import Scenario, load_scenario
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "EXAMPLES"]
 
 log = logging.getLogger("wncs")
+
+PACKAGE = "wncs"  # the distribution name in pyproject.toml
+
+DESCRIPTION = (
+    "WNCS: wireless networked control systems on Zenoh, in deterministic virtual time. "
+    "Run a scenario (plants, controllers, a WSN gateway emulator, the coordination agent), "
+    "inspect its artefacts, inject events into a live run, assess a loop from routine data. "
+    "Exit codes: 0 success, 2 bad input, 3 the run was stopped by a fault, 1 other failures."
+)
+
+EXAMPLES: dict[str, tuple[str, ...]] = {
+    "wncs": (
+        "wncs run scenarios/jcstr_wncs.yaml --out runs/wncs --engine threads",
+        "wncs validate scenarios/jcstr_wncs.yaml",
+        "wncs report runs/wncs",
+    ),
+    "run": (
+        "wncs run scenarios/jcstr_benchmark.yaml --out runs/bench --engine threads",
+        "wncs run scenarios/tank_sim.yaml --out runs/tank --set loops.level.tau_s=0.2",
+        "wncs run scenarios/jcstr_wsn.yaml --out runs/wsn"
+        " --set nodes.network.topology.retry_limit=5",
+    ),
+    "node": (
+        "wncs node scenarios/tank_sim.yaml clock --connect tcp/127.0.0.1:7447 --run-id r1",
+        "wncs node scenarios/tank_sim.yaml level_controller --connect tcp/127.0.0.1:7447"
+        " --run-id r1",
+    ),
+    "report": ("wncs report runs/bench",),
+    "analyze": (
+        "wncs analyze scenarios/jcstr_wncs.yaml --out runs/analysis",
+        "wncs analyze scenarios/jcstr_wncs.yaml --delays level=0.17,temperature=0.1 --out runs/an",
+    ),
+    "inject": (
+        "wncs inject runs/wsn node_down node=r1",
+        "wncs inject runs/wncs mode steady_state",
+        "wncs inject runs/wncs setpoint level=0.72",
+    ),
+    "assess": (
+        "wncs assess loop.csv --primary PV --setpoint SP --secondary T2,T3 --delays 5,2,6,1",
+        "wncs assess runs/cr --primary temperature --secondary reactor.y2,reactor.y3"
+        " --delays 3,1,3,1",
+    ),
+    "validate": (
+        "wncs validate scenarios/jcstr_benchmark.yaml scenarios/jcstr_wsn.yaml",
+        "wncs validate scenarios/tank_sim.yaml --set loops.level.tau_s=0.2",
+    ),
+    "schema": (
+        "wncs schema --out scenario.schema.json",
+        "wncs schema > scenario.schema.json",
+    ),
+}
+"""Per subcommand (and ``wncs`` itself), the commands its help ends with: shipped scenarios only,
+and a test parses each."""
+
+_WIDTH = 79  # descriptions are filled to this; the examples are kept as written
 
 
 def _positive_float(text: str) -> float:
@@ -48,17 +113,78 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="wncs", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def _fill(text: str) -> str:
+    """A description filled to the help's width, unless it is laid out already (has lines)."""
+    return text if "\n" in text else textwrap.fill(text, _WIDTH)
 
-    run = sub.add_parser("run", help="run a scenario and write its artefacts to DIR")
+
+def _epilog(name: str) -> str:
+    return "examples:\n" + "\n".join(f"  {line}" for line in EXAMPLES[name])
+
+
+def _command(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser],
+    name: str,
+    help: str,
+    description: str | None = None,
+) -> argparse.ArgumentParser:
+    """A subcommand whose help ends with its examples (kept as written: one command a line)."""
+    return sub.add_parser(
+        name,
+        help=help,
+        description=_fill(description or help[0].upper() + help[1:] + "."),
+        epilog=_epilog(name),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
+def _add_set(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="PATH=VALUE",
+        help="override a field of the scenario before it is validated, e.g. "
+        "loops.level.tau_s=0.2 or setpoints.0.value=0.8 (the value is YAML; repeatable)",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="wncs",
+        description=_fill(DESCRIPTION),
+        epilog=_epilog("wncs")
+        + "\n\n'wncs COMMAND --help' shows a command's options and examples.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--version", action="version", version=f"wncs {version(PACKAGE)}", help="print the version"
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = _command(
+        sub,
+        "run",
+        "run a scenario and write its artefacts to DIR",
+        "Run a scenario and write its artefacts (run.json, scenario.yaml, history.sqlite or "
+        "record.json, summary.json, one PNG per loop, logs/) to DIR. On a terminal it shows "
+        "simulated time against the end time, then each loop's overshoot, settling time and IAE.",
+    )
     run.add_argument("scenario", help="scenario YAML file")
-    run.add_argument("--out", required=True, help="output directory")
-    run.add_argument("--engine", choices=("processes", "threads", "direct"), default="processes")
+    run.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    run.add_argument(
+        "--engine",
+        choices=("processes", "threads", "direct"),
+        default="processes",
+        help="processes: one OS process per node (default); threads: the same nodes in this "
+        "process; direct: no bus, fast",
+    )
     run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     run.add_argument(
-        "--listen", default=None, help="endpoint of the embedded router (default tcp/127.0.0.1:0)"
+        "--listen",
+        default=None,
+        metavar="ENDPOINT",
+        help="endpoint of the embedded router (default tcp/127.0.0.1:0)",
     )
     run.add_argument(
         "--realtime",
@@ -68,13 +194,20 @@ def build_parser() -> argparse.ArgumentParser:
         help="pace virtual time against the wall clock",
     )
     run.add_argument("--quiet", action="store_true", help="print only errors")
+    _add_set(run)
 
-    node = sub.add_parser("node", help="run one node of a scenario's graph")
-    node.add_argument("scenario")
+    node = _command(
+        sub,
+        "node",
+        "run one node of a scenario's graph",
+        "Run one node of a scenario's graph (or the clock, or the historian) against a router: "
+        "the command the launcher starts for each node of the processes engine.",
+    )
+    node.add_argument("scenario", help="scenario YAML file")
     node.add_argument("name", help="node name, or 'clock' / 'historian'")
     node.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
-    node.add_argument("--run-id", required=True)
-    node.add_argument("--seed", type=int, default=None)
+    node.add_argument("--run-id", required=True, help="the run's id (key prefix on the bus)")
+    node.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     node.add_argument("--out", default=".", help="historian: directory of history.sqlite")
     node.add_argument("--engine", default="processes", help="historian: engine recorded in meta")
     node.add_argument(
@@ -84,46 +217,96 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS_PER_UNIT",
         help="clock: real-time pacing",
     )
+    _add_set(node)
 
-    report = sub.add_parser("report", help="redraw a run's plots and print its figures")
-    report.add_argument("dir")
+    report = _command(sub, "report", "redraw a run's plots and print its figures")
+    report.add_argument("dir", metavar="DIR", help="run directory written by wncs run")
 
-    analyze = sub.add_parser(
-        "analyze", help="the coordination agent's decision and periods, without the bus"
+    analyze = _command(
+        sub,
+        "analyze",
+        "the coordination agent's decision and periods, without the bus",
+        "The coordination agent's analysis alone, without the bus: the largest tolerable delay "
+        "of each loop, its decision on the scenario's (or the given) delays and the sampling "
+        "periods it would assign.",
     )
-    analyze.add_argument("scenario")
+    analyze.add_argument("scenario", help="scenario YAML file with a coordination agent")
     analyze.add_argument(
         "--delays",
         default=None,
         help="control-path delays, loop=value,... (default: from the scenario's networks)",
     )
-    analyze.add_argument("--method", choices=("paper", "fast"), default=None)
-    analyze.add_argument("--out", required=True, help="output directory")
-
-    inject = sub.add_parser(
-        "inject",
-        help="inject a network reconfiguration, a mode or a set point into a running run",
-        description="wncs inject DIR EVENT [KEY=VALUE ...]  (or --listen EP --run-id ID EVENT ...)."
-        " Events: node_down node=N | node_up node=N | link_degraded a=N b=M prr=P |"
-        " delay_model_changed delay=JSON [link=JSON] | relay_added node=N links=JSON |"
-        " node_moved node=N links=JSON | mode MODE (to the coordination agent) |"
-        " setpoint LOOP=VALUE",
+    analyze.add_argument(
+        "--method",
+        choices=("paper", "fast"),
+        default=None,
+        help="paper: seed 000's successive approximation; fast: the same question on the "
+        "linearised loops (default: the method in the scenario's agent)",
     )
-    inject.add_argument("words", nargs="+", help="DIR EVENT [KEY=VALUE ...]")
+    analyze.add_argument("--out", required=True, metavar="DIR", help="output directory")
+
+    inject = _command(
+        sub,
+        "inject",
+        "inject a network reconfiguration, a mode or a set point into a running run",
+        "Send an event to a running run's clock, which stamps it into its next round. The run\n"
+        "is named by its directory (its run.json), or by --listen ENDPOINT --run-id ID.\n"
+        "\n"
+        "events:\n"
+        "  node_down node=N, node_up node=N, link_degraded a=N b=M prr=P,\n"
+        "  delay_model_changed delay=JSON [link=JSON], relay_added node=N links=JSON,\n"
+        "  node_moved node=N links=JSON  (to the gateway, --network when there are several)\n"
+        "  mode MODE                     (to the coordination agent)\n"
+        "  setpoint LOOP=VALUE\n"
+        "\n"
+        "An unknown event, field, node, mode or loop is refused (exit 2) before anything is sent.",
+    )
+    inject.add_argument(
+        "words",
+        nargs="+",
+        metavar="WORD",
+        help="DIR EVENT [KEY=VALUE ...], or EVENT [KEY=VALUE ...] with --listen",
+    )
     inject.add_argument("--network", default=None, help="gateway node (default: the only one)")
-    inject.add_argument("--listen", default=None, help="router endpoint, instead of DIR")
+    inject.add_argument(
+        "--listen", default=None, metavar="ENDPOINT", help="router endpoint, instead of DIR"
+    )
     inject.add_argument("--run-id", default=None, help="run id, with --listen")
 
-    assess = sub.add_parser(
+    assess = _command(
+        sub,
         "assess",
-        help="Harris index and cascade opportunities of a loop from routine data (seed 004)",
-        description="Assess a simple-feedback loop from routine data: its Harris index with its "
+        "Harris index and cascade opportunities of a loop from routine data (seed 004)",
+        "Assess a simple-feedback loop from routine data: its Harris index with its "
         "uncertainty and, per candidate secondary, the variance components 1a/1b/2a/2b and the "
         "predicted variance under cascade control. DATA is a CSV file (columns as exported by a "
         "historian) or a run directory (columns LOOP, LOOP.sp, PLANT.STATE). Exit codes: 0 "
         "assessed, 2 bad input, 3 a part unidentifiable.",
     )
     add_assess_arguments(assess)
+
+    validate = _command(
+        sub,
+        "validate",
+        "check scenario files without running them",
+        "Check scenario files without running anything: a YAML syntax error names the line and "
+        "column, a bad field its dotted name and line. Prints 'ok: FILE' for each valid file. "
+        "Exit codes: 0 every file is valid, 2 one is not.",
+    )
+    validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario YAML files")
+    _add_set(validate)
+
+    schema = _command(
+        sub,
+        "schema",
+        "print the JSON Schema of scenario files (for editors)",
+        "Print the JSON Schema of scenario files, from the same models that validate them, for "
+        "editors: VS Code's YAML extension completes and checks a scenario with the line "
+        "'# yaml-language-server: $schema=scenario.schema.json' at its top.",
+    )
+    schema.add_argument(
+        "--out", default=None, metavar="FILE", help="write the schema to FILE (default stdout)"
+    )
     return parser
 
 
@@ -155,6 +338,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         listen=args.listen,
         realtime=args.realtime,
         progress=stream,
+        overrides=args.set,
     )
     if result.code != 0:
         print(f"wncs run: {result.error}", file=sys.stderr)
@@ -175,7 +359,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_node(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, overrides=args.set)
     if args.seed is not None:
         scenario = scenario.model_copy(update={"seed": args.seed})
     if args.name != "clock":
@@ -265,11 +449,39 @@ def _cmd_assess(args: argparse.Namespace) -> int:
     return run_from_args(args)
 
 
+def _cmd_validate(args: argparse.Namespace) -> int:
+    code = 0
+    for path in args.scenarios:
+        try:
+            load_scenario(path, overrides=args.set)
+        except ConfigError as err:
+            print(f"wncs validate: {err}", file=sys.stderr)
+            code = 2
+        else:
+            print(f"ok: {path}")
+    return code
+
+
+def _cmd_schema(args: argparse.Namespace) -> int:
+    text = json.dumps(Scenario.model_json_schema(), indent=2) + "\n"
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    try:
+        Path(args.out).write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"--out {args.out}: cannot write: {err.strerror or err}") from err
+    print(f"wrote {args.out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.INFO if args.command == "node" else logging.WARNING
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if args.command in ("run", "inject"):
+        init_zenoh_log("off")  # this process's stdout is the terminal: kernel.bus.init_zenoh_log
     try:
         commands = {
             "run": _cmd_run,
@@ -278,6 +490,8 @@ def main(argv: list[str] | None = None) -> int:
             "inject": _cmd_inject,
             "analyze": _cmd_analyze,
             "assess": _cmd_assess,
+            "validate": _cmd_validate,
+            "schema": _cmd_schema,
         }
         return commands[args.command](args)
     except ConfigError as err:

@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -142,12 +143,17 @@ def launch(
     listen: str | None = None,
     realtime: float | None = None,
     progress: TextIO | None = None,
+    overrides: Sequence[str] = (),
 ) -> RunResult:
-    """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts."""
+    """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
+
+    ``overrides`` are ``--set`` arguments (``"loops.level.tau_s=0.2"``) applied to the file's
+    mapping before validation; each node process gets them too, so all load the same scenario.
+    """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
     scenario_path = Path(scenario_path)
-    scenario = load_scenario(scenario_path)
+    scenario = load_scenario(scenario_path, overrides=overrides)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
     out = Path(out)
@@ -161,6 +167,7 @@ def launch(
         "engine": engine,
         "scenario": str(scenario_path.resolve()),
         "seed": scenario.seed,
+        "overrides": list(overrides),
         "endpoint": None,
         "nodes": {},
     }
@@ -178,6 +185,7 @@ def launch(
         scenario_path,
         out,
         run_info,
+        overrides=overrides,
         engine=engine,
         listen=listen,
         realtime=realtime,
@@ -192,6 +200,7 @@ def _launch_bus(
     out: Path,
     run_info: dict[str, Any],
     *,
+    overrides: Sequence[str],
     engine: str,
     listen: str | None,
     realtime: float | None,
@@ -216,7 +225,7 @@ def _launch_bus(
         "historian": ["--out", str(out), "--engine", engine],
         "clock": ["--realtime", repr(realtime)] if realtime else [],
     }
-    seed_args = ["--seed", str(scenario.seed)]
+    common_args = ["--seed", str(scenario.seed), *(f"--set={o}" for o in overrides)]
     t_started: float | None = None
     code, error = 0, None
     try:
@@ -228,7 +237,7 @@ def _launch_bus(
                 names,
                 endpoint,
                 options,
-                seed_args,
+                common_args,
                 prog,
             )
         else:
@@ -269,7 +278,7 @@ def _run_processes(
     names: list[str],
     endpoint: str,
     options: dict[str, list[str]],
-    seed_args: list[str],
+    common_args: list[str],
     prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
     logs = out / "logs"
@@ -284,7 +293,7 @@ def _run_processes(
                 name,
                 endpoint,
                 run_info["run_id"],
-                extra=[*options.get(name, []), *seed_args],
+                extra=[*options.get(name, []), *common_args],
             )
             f = open(logs / f"{name}.log", "w")  # noqa: SIM115 - closed in finally
             files.append(f)

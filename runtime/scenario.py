@@ -27,13 +27,12 @@ Two node names are reserved and always present: ``clock`` and ``historian``.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from agents.monitor.behaviour import MonitorBehaviour
@@ -66,6 +65,7 @@ from gateway.energy import EnergyConfig
 from gateway.topology import Topology, TopologyConfig, TopologyEvent
 from plants import registry
 from plants.behaviour import PlantBehaviour
+from runtime.overrides import Override, apply_overrides, parse_override
 from runtime.specs import (
     controller_spec,
     monitor_spec,
@@ -73,6 +73,7 @@ from runtime.specs import (
     operator_spec,
     plant_spec,
 )
+from runtime.yaml_positions import field_line, message_path, read_yaml
 
 __all__ = [
     "RESERVED_NODES",
@@ -956,41 +957,51 @@ class Scenario(BaseModel):
         return Scenario.model_validate(data)
 
 
-def _format_error(source: str, err: ValidationError) -> str:
+def _format_error(source: str, err: ValidationError, text: str | None = None) -> str:
+    """One line per error: ``source: field: message``; ``source: line N: field: ...`` with text."""
     lines = []
     for e in err.errors():
         loc = ".".join(str(p) for p in e["loc"])
         msg = e["msg"].removeprefix("Value error, ")
-        lines.append(f"{source}: {loc + ': ' if loc else ''}{msg}")
+        line = None if text is None else field_line(text, message_path(e["loc"], msg))
+        where = source if line is None else f"{source}: line {line}"
+        lines.append(f"{where}: {loc + ': ' if loc else ''}{msg}")
     return "\n".join(lines)
 
 
-def parse_scenario(data: Any, *, source: str = "<scenario>") -> Scenario:
-    """Validate an already-parsed mapping; errors name ``source`` and the field."""
+def parse_scenario(data: Any, *, source: str = "<scenario>", text: str | None = None) -> Scenario:
+    """Validate an already-parsed mapping; errors name ``source`` and the field.
+
+    With ``text`` (the YAML ``data`` was read from), each error also names the field's line.
+    """
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
     try:
         return Scenario.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(_format_error(source, err)) from err
+        raise ConfigError(_format_error(source, err, text)) from err
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file.
+def load_scenario(path: str | Path, *, overrides: Sequence[str | Override] = ()) -> Scenario:
+    """Read and validate a scenario file, after applying ``--set`` style ``overrides``.
+
+    The overrides (``"loops.level.tau_s=0.2"``, see :mod:`runtime.overrides`) change the mapping
+    read from the file before validation, so a bad value is refused as it would be in the file.
 
     Raises
     ------
     ConfigError
-        If the file cannot be read, is not YAML, or does not validate; the message names the file
-        and the dotted field.
+        If the file cannot be read, is not YAML (the message names line and column), an override
+        names a path the file does not have, or the scenario does not validate; the message names
+        the file, the dotted field and, where the file has it, the field's line
+        (``scenarios/x.yaml: line 14: loops.level.tau_s: Input should be greater than 0``).
     """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ConfigError(f"{path}: cannot read scenario: {err.strerror or err}") from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise ConfigError(f"{path}: not valid YAML: {err}") from err
-    return parse_scenario(data, source=str(path))
+    data = read_yaml(text, source=str(path))
+    parsed = [o if isinstance(o, Override) else parse_override(o) for o in overrides]
+    data = apply_overrides(data, parsed)
+    return parse_scenario(data, source=str(path), text=text)

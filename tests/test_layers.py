@@ -7,7 +7,8 @@ Lowest first; a module imports only from its own layer or below::
     2 cores         plants/, controllers/, gateway/, agents/ (numpy, scipy, control, pydantic)
     3 behaviours    <package>/behaviour.py: what a node kind does at time t, bus-free
     3 kernel        kernel/: round loop, clock, zenoh sessions; imports only core + bus_schemas
-    4 scenario      runtime/scenario.py: the YAML schema; runtime/specs.py: one spec per node
+    4 scenario      runtime/scenario.py: the YAML schema; runtime/specs.py: one spec per node;
+                    runtime/yaml_positions.py, runtime/overrides.py: reading the file, --set
     5 application   runtime/ (CLI, launcher, engines, reports, inject, assess) and the
                     commands that live beside their core (agents/monitor/command.py, ...)
 
@@ -46,7 +47,12 @@ APPLICATION_MODULES = {
     "agents.monitor.audit",
     "agents.monitor.audit_report",
 }
-SCENARIO_MODULES = {"runtime.scenario", "runtime.specs"}  # the schema; each node's typed spec
+SCENARIO_MODULES = {  # the schema; each node's typed spec; reading a file with positions, --set
+    "runtime.scenario",
+    "runtime.specs",
+    "runtime.yaml_positions",
+    "runtime.overrides",
+}
 LAZY_ALLOWED = ("matplotlib",)  # optional heavy imports may sit inside functions
 
 # What the foundation refit (issue 13) has not cut yet, as ``module -> imported``: each entry is

@@ -158,8 +158,18 @@ def add_assess_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--max-order", type=int, default=30, help="largest AR/VAR order tried")
     parser.add_argument("--order", type=int, default=None, help="fixed AR/VAR order")
-    parser.add_argument("--criterion", choices=("aic", "bic"), default="aic")
-    parser.add_argument("--method", choices=("ls", "yule_walker"), default="ls")
+    parser.add_argument(
+        "--criterion",
+        choices=("aic", "bic"),
+        default="aic",
+        help="information criterion that picks the AR/VAR order (default aic)",
+    )
+    parser.add_argument(
+        "--method",
+        choices=("ls", "yule_walker"),
+        default="ls",
+        help="AR/VAR estimator: least squares or Yule-Walker (default ls)",
+    )
     parser.add_argument(
         "--config",
         default=None,

@@ -85,7 +85,7 @@ def test_bad_scenario_names_file_and_field(tmp_path, name, edit, field, fragment
 def test_not_yaml_and_missing_file(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("nodes: [unclosed")
-    with pytest.raises(ConfigError, match="bad.yaml: not valid YAML"):
+    with pytest.raises(ConfigError, match=r"bad\.yaml: line 1, column 17: not valid YAML"):
         load_scenario(bad)
     with pytest.raises(ConfigError, match="nope.yaml: cannot read"):
         load_scenario(tmp_path / "nope.yaml")
