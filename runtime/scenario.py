@@ -2,7 +2,9 @@
 
 A scenario is YAML validated into :class:`Scenario` before anything starts; every problem
 becomes a :class:`~core.errors.ConfigError` naming the file and the dotted field
-(``scenarios/x.yaml: loops.level.tau_s: Input should be greater than 0``).
+(``scenarios/x.yaml: line 14: loops.level.tau_s: Input should be greater than 0``; the line
+where the file has the field, ``runtime/yaml_positions.py``; ``--set`` overrides,
+``runtime/overrides.py``, are applied before validation).
 
 Shape (see ``scenarios/jcstr_benchmark.yaml``)::
 

@@ -290,6 +290,21 @@ def test_run_uses_the_override(capsys, tmp_path, sigterm_restored):
 # -- zenoh's own log lines ------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("command", ["run", "inject"])
+def test_terminal_commands_start_zenoh_log_off(capsys, monkeypatch, tmp_path, command):
+    """The commands whose process talks on the bus with the terminal as stdout start zenoh's
+    logging at "off" (kernel.bus.init_zenoh_log: RUST_LOG still wins) before anything else."""
+    levels: list[str] = []
+    monkeypatch.setattr("runtime.cli.init_zenoh_log", levels.append)
+    monkeypatch.setattr("runtime.cli.signal.signal", lambda *args: None)
+    argv = {
+        "run": ["run", str(TANK), "--out", str(tmp_path / "o"), "--set", "loops.level.tau_s=-1"],
+        "inject": ["inject", str(tmp_path / "nothing"), "node_down", "node=r1"],
+    }[command]
+    assert main(argv) == 2
+    assert levels == ["off"]
+
+
 @pytest.mark.slow
 def test_zenoh_log_lines_stay_off_a_threads_run_unless_rust_log_asks(tmp_path):
     """Zenoh logs to the process's stdout; ``wncs run`` starts it at "off" unless RUST_LOG is
@@ -315,3 +330,25 @@ def test_zenoh_log_lines_stay_off_a_threads_run_unless_rust_log_asks(tmp_path):
     loud = run("loud", RUST_LOG="info")
     assert loud.returncode == 0, loud.stderr
     assert "zenoh::" in loud.stdout
+
+
+@pytest.mark.slow
+def test_processes_engine_gives_every_node_the_overrides(tmp_path):
+    """Each node process loads the file itself: with the launcher passing --set on, the bus run
+    equals the direct run of the same overrides, sample for sample."""
+    overrides = [*SHORT, "--set", "loops.level.tau_s=0.2"]
+    traces = {}
+    for engine in ("processes", "direct"):
+        out = tmp_path / engine
+        done = subprocess.run(
+            [sys.executable, "-m", "runtime.cli", "run", str(TANK), "--out", str(out)]
+            + ["--engine", engine, "--quiet", *overrides],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            cwd=ROOT,
+        )
+        assert done.returncode == 0, done.stderr
+        traces[engine] = json.loads((out / "summary.json").read_text())["loops"]["level"]["trace"]
+    assert traces["processes"] == traces["direct"]
+    assert traces["direct"]["t"][:3] == [0.0, 0.2, 0.4]
