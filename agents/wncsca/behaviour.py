@@ -117,14 +117,26 @@ class WncscaBehaviour(Behaviour):
             )
             if value is None:
                 return
-            if self.core.mode != mode:
+            if self.core.mode != mode or self.core.relax_at is not None:
                 self._publish_rates()
+            if self.core.relax_at is not None:
+                self.at(self.core.relax_at, self._relax)
             if when == self.now:
                 self._pass_on(loop, value)
             else:
                 self.at(when, lambda: self._pass_on(loop, value))
 
         return handle
+
+    def _relax(self) -> None:
+        d = self.core.relax()
+        if d is None:
+            return
+        self.publish(
+            keys.wncsca_decision(),
+            Decision(subject="setpoint", verdict=d.verdict, reasons=d.reasons),
+        )
+        self._publish_rates()
 
     def _pass_on(self, loop: str, value: float) -> None:
         self.core.setpoints[loop] = value

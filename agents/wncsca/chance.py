@@ -39,10 +39,12 @@ the limit. That order statistic is the *risk overshoot* the searches of
 :mod:`agents.wncsca.paper` and :mod:`agents.wncsca.bounds` compare with the limit, unchanged.
 Every decision reports the estimate with its two-sided 95 % Clopper-Pearson interval.
 
-The linearisation's error is corrected on the non-linear model (:class:`ChanceModel`): the first
-``checks`` realizations are replayed on the direct engine (their delay sequences on a wired path,
-``traces:``; their phases exactly), and the mean paired difference of the overshoots is added to
-the linear ones.
+The linearisation's error is corrected on the non-linear model (:meth:`ChanceModel.check`): the
+realizations whose linear overshoot ranks nearest the risk order statistic are replayed on the
+direct engine (their delay sequences on a wired path, ``traces:``; their phases exactly), and the
+mean paired difference there is added to the linear overshoots. For the JCSTR level (a linear
+plant) the two models agree to 1e-8 points realization by realization; for the temperature the
+linear model overshoots 0-5 points more, depending on the step phase.
 """
 
 from __future__ import annotations
@@ -348,7 +350,17 @@ class LinearMonteCarlo:
                 dlv = (kind == _DELIVER) & (W[:, e] == i)
                 if dlv.any():
                     u = self._execute(
-                        i, n, dlv, t, buf[n][rows, np.where(dlv, Ix[:, e], 0)], r, stage, integral, e_prev, t_exec, u
+                        i,
+                        n,
+                        dlv,
+                        t,
+                        buf[n][rows, np.where(dlv, Ix[:, e], 0)],
+                        r,
+                        stage,
+                        integral,
+                        e_prev,
+                        t_exec,
+                        u,
                     )
                     w = forcing()
             stp = kind == _STEP
@@ -506,28 +518,50 @@ class ChanceModel:
         return out
 
     def check(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> dict[str, Any]:
-        """Replay the first ``checks`` realizations on the non-linear model and update the
-        offsets to the mean paired difference (non-linear minus linear); returns both sets."""
-        from_trials = self.base.trials
+        """Replay realizations on the non-linear model where the guarantee is decided, and
+        correct the linear overshoots by what they differ there.
+
+        For each loop, the ``checks / loops`` realizations whose linear overshoot ranks nearest
+        the risk order statistic are replayed (:meth:`ChanceModel.evaluate`); the loop's offset
+        is the mean paired difference, non-linear minus linear, over its own selection (``inf``
+        when a replay diverged). The linear model's error depends on the step phase and the
+        delays, so it is measured in the tail that sets the risk, not on average."""
         per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
         dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
         linear = self.samples(per, dly) - np.array([self.offsets[n] for n in self.loops])
-        n_checks = min(self.config.checks, self.linear.R)
-        nonlinear = np.zeros((n_checks, len(self.loops)))
-        for r in range(n_checks):
+        R = self.linear.R
+        per_loop = max(1, self.config.checks // len(self.loops))
+        rank = R - 1 - self.k_max
+        lo = max(0, min(rank - per_loop // 2, R - per_loop))
+        chosen = {
+            n: np.argsort(linear[:, i], kind="stable")[lo : lo + per_loop]
+            for i, n in enumerate(self.loops)
+        }
+        replays = sorted({int(r) for rows in chosen.values() for r in rows})
+        nonlinear: dict[int, list[float]] = {}
+        for r in replays:
             traces, phases = self.linear.traces(per, dly, r)
-            rec = from_trials.run_replay(per, dly, traces, phases, PHASES)
+            rec = self.base.trials.run_replay(per, dly, traces, phases, PHASES)
             nonlinear[r] = self.base.overshoots_of(rec)
             self.base.simulations += 1
-        self.checks_run += n_checks
-        ok = np.isfinite(nonlinear) & np.isfinite(linear[:n_checks])
+        self.checks_run += len(replays)
         for i, n in enumerate(self.loops):
-            diff = nonlinear[ok[:, i], i] - linear[:n_checks][ok[:, i], i]
-            self.offsets[n] = float(diff.mean()) if len(diff) else math.inf
+            nl = np.array([nonlinear[int(r)][i] for r in chosen[n]])
+            li = linear[chosen[n], i]
+            if not np.isfinite(nl).all():
+                self.offsets[n] = math.inf
+            elif not np.isfinite(li).all():
+                self.offsets[n] = 0.0
+            else:
+                self.offsets[n] = float(np.mean(nl - li))
         return {
-            "checks": n_checks,
+            "checks": len(replays),
             "offsets": dict(self.offsets),
             "nonlinear_overshoot_pct": {
-                n: [float(v) for v in nonlinear[:, i]] for i, n in enumerate(self.loops)
+                n: [float(nonlinear[int(r)][i]) for r in chosen[n]]
+                for i, n in enumerate(self.loops)
+            },
+            "linear_overshoot_pct": {
+                n: [float(linear[int(r), i]) for r in chosen[n]] for i, n in enumerate(self.loops)
             },
         }

@@ -155,8 +155,8 @@ class WncscaConfig(BaseModel):
         default=400, ge=16, le=20000, description="chance method: Monte Carlo realizations"
     )
     checks: int = Field(
-        default=12,
-        ge=1,
+        default=24,
+        ge=2,
         le=1000,
         description="chance method: realizations replayed on the non-linear model to correct "
         "the linearisation",

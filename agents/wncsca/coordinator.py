@@ -17,7 +17,10 @@ than the band from its set point turns steady state into fault detection (faster
 for another mode.
 
 A set-point request first restores the control periods and closes the loops (mode
-``setpoint_change``), then the change is passed on, at its announced time.
+``setpoint_change``), then the change is passed on, at its announced time. Under the chance
+method the step is judged first (:func:`agents.wncsca.steps.judge_step`): applied at the
+control periods, applied with tightened periods for its transient (relaxed after the test's
+length: :meth:`Coordinator.relax`), or refused with the predicted overshoot.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
-from agents.wncsca.chance import ChanceModel
+from agents.wncsca.chance import ChanceModel, LoopLaw
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.decision import (
     Decision,
@@ -41,9 +44,12 @@ from agents.wncsca.decision import (
 )
 from agents.wncsca.fast import fast_periods
 from agents.wncsca.guarantee import chance_periods, path_laws
+from agents.wncsca.jitter import loop_margins
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from agents.wncsca.steps import judge_step
+from core.time import to_ticks
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
@@ -130,6 +136,11 @@ class Coordinator:
         self.link_periods: dict[str, float] = {n: lk.period for n, lk in scenario.links.items()}
         self._bounds: dict[str, DelayBound] | None = None
         self.setpoints = {n: lp.setpoint for n, lp in scenario.loops.items()}
+        # the chance method: each loop's delay law of the accepted configuration, and a
+        # tightened step's transient (the periods to relax back to, and when)
+        self.laws: dict[str, LoopLaw] = {}
+        self._relaxed: dict[str, float] | None = None
+        self.relax_at: int | None = None
         self._strikes = {n: 0 for n in self.loops}
 
     @property
@@ -206,6 +217,7 @@ class Coordinator:
         result = risk if risk is not None else assign(self.model, self.delays, weights)
         if result.feasible:
             self.control_periods = dict(result.periods)
+            self._relaxed = None  # a new negotiation ends any tightened transient
         self.predicted = dict(result.overshoot_pct)
         self.method = result.method
         energy = self.energy(network, paths)
@@ -217,7 +229,9 @@ class Coordinator:
         """III.E steps 2-3 on the risk (the chance method): the proposal is accepted when
         periods exist that keep every loop's ``P(overshoot <= limit) >= confidence`` under its
         delay distribution (found by the paper's search on the risk, checked on the non-linear
-        model: :func:`agents.wncsca.guarantee.chance_periods`), else rejected naming the loops.
+        model: :func:`agents.wncsca.guarantee.chance_periods`) and every loop's delay variation
+        at those periods is within its jitter margin (:mod:`agents.wncsca.jitter`), else
+        rejected naming the loops.
 
         Raises
         ------
@@ -251,7 +265,23 @@ class Coordinator:
                 f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
                 f"{result.periods[n]:g} ({what})"
             )
+        margins = loop_margins(self.model, result.periods, known, laws)
+        result.extra["jitter_margin"] = margins
+        unstable = [n for n in self.loops if n in margins and not margins[n]["ok"]]
+        lines += [
+            f"{n}: jitter margin {m['margin']:.4g} {'>' if m['ok'] else '<='} delay variation "
+            f"{m['variation']:.4g} (nominal {m['nominal_delay']:.4g}, Kao-Lincoln)"
+            for n, m in sorted(margins.items())
+        ]
+        if unstable:
+            reasons = (
+                f"outside the jitter margin of {unstable}: stability is not guaranteed under "
+                "the proposal's delay variation, whatever the simulations say",
+                *lines,
+            )
+            return Decision(pid, "reject", reasons, known, {}, used, tuple(unstable)), None
         if result.feasible:
+            self.laws.update(laws)
             return Decision(pid, "accept", tuple(lines), known, {}, used), result
         offending = tuple(n for n in carried if guarantee["probability"][n]["p"] < conf) or carried
         reasons = (
@@ -345,11 +375,41 @@ class Coordinator:
                 now,
             )
         when = now if t_apply is None else max(int(t_apply), now)
+        judged = ()
+        if self.config.method == "chance" and loop in self.loops:
+            step = judge_step(
+                self.model,
+                self.laws,
+                self.delays,
+                self.control_periods,
+                self.setpoints,
+                loop,
+                float(value),
+                self.scenario.seed,
+            )
+            judged = (step.reason(self.config.overshoot_limit),)
+            if step.verdict == "refuse":
+                return Decision(None, "refuse", judged), None, now
+            if step.verdict == "tighten":
+                if self._relaxed is None:
+                    self._relaxed = dict(self.control_periods)
+                self.control_periods = dict(step.periods)
+                self.relax_at = when + to_ticks(float(self.model.trials.scenario.end_time))
         previous, self.mode = self.mode, "setpoint_change"
         note = f"{loop} -> {value:g} at t={when / 1e6:g}"
         if previous != "setpoint_change":
             note += f"; control periods restored and loops closed first (was {previous})"
-        return Decision(None, "accept", (note,)), float(value), when
+        return Decision(None, "accept", (note, *judged)), float(value), when
+
+    def relax(self) -> Decision | None:
+        """The transient of a tightened step is over: the negotiated periods come back
+        (``None`` when nothing was tightened, or a new negotiation has replaced them)."""
+        self.relax_at = None
+        if self._relaxed is None:
+            return None
+        self.control_periods, self._relaxed = self._relaxed, None
+        per = ", ".join(f"{n} {p:g}" for n, p in sorted(self.control_periods.items()))
+        return Decision(None, "accept", (f"step transient over: control periods relaxed to {per}",))
 
     def on_sample(self, loop: str, y: float, t: int) -> Decision | None:
         """A delivered sample of ``loop`` at ``t`` (ticks) while the loops may be open: raise

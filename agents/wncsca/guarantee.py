@@ -8,8 +8,10 @@ are combined by sampling their sum, the losses as independent); :func:`risk_boun
 step 2 on the risk (the largest *mean* control-path delay with the proposal's shape that keeps
 ``P(overshoot <= limit) >= confidence`` at the benchmark periods); :func:`chance_periods` is step
 3 on the risk, then checked: the realizations replayed on the non-linear model correct the
-linear prediction, and the search is repeated with the correction until the checked choice holds
-(at most :data:`ROUNDS` times).
+linear prediction where the choice lies, and the search is repeated with the correction until the
+checked choice holds with every loop in the paper's band ``[limit - eps_OS, limit]`` or the
+choice no longer changes (at most :data:`ROUNDS` repeats; the last choice that held its own check
+is kept).
 """
 
 from __future__ import annotations
@@ -100,13 +102,22 @@ def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignmen
     cfg = model.config
     limit = cfg.overshoot_limit
     checks: list[dict[str, Any]] = []
+    band = limit - cfg.os_tolerance
     result = successive_approximation(model, delays)  # type: ignore[arg-type]
-    for _ in range(ROUNDS):
+    held_result: Assignment | None = None
+    for _ in range(1 + ROUNDS):
         checks.append(model.check(result.periods, delays))
         corrected = model.evaluate(result.periods, delays)
         if corrected.ok(limit):
+            held_result = result
+            if all(v >= band for v in corrected.overshoot_pct.values()):
+                break  # every loop in the paper's band [limit - eps_OS, limit]: done
+        again = successive_approximation(model, delays)  # type: ignore[arg-type]
+        if again.periods == result.periods:
             break
-        result = successive_approximation(model, delays)  # type: ignore[arg-type]
+        result = again
+    if held_result is not None and not model.evaluate(result.periods, delays).ok(limit):
+        result = held_result  # the last choice that held on its own check
     final = model.evaluate(result.periods, delays)
     held = final.ok(limit)
     result.method = "chance"

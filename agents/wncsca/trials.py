@@ -146,6 +146,31 @@ class ScenarioTrials:
         """One trial on the direct engine."""
         return self._simulate(self.scenario_at(periods, delays, phase))
 
+    def run_steps(
+        self,
+        periods: Mapping[str, float],
+        delays: Mapping[str, float],
+        steps: list[tuple[float, str, float]],
+        end_time: float,
+        traces: Mapping[str, list[float | None]] | None = None,
+    ) -> RunRecord:
+        """One trial on the direct engine with these set-point ``steps`` (``(t, loop, value)``,
+        time units) instead of the test's, run to ``end_time``, with each loop's sensor-path
+        delays replayed from ``traces`` (default: the constant ``delays``)."""
+        trial = self.scenario_at(periods, delays, None)
+        template = trial.setpoints[0]
+        setpoints = [
+            template.model_copy(update={"t": float(t), "loop": loop, "value": float(value)})
+            for t, loop, value in steps
+        ]
+        update: dict[str, Any] = {"setpoints": setpoints, "end_time": float(end_time)}
+        if traces is not None:
+            net = type(trial.nodes[_NET]).model_validate(
+                {"kind": "network", "traces": dict(traces)}
+            )
+            update["nodes"] = {**trial.nodes, _NET: net}
+        return self._simulate(trial.model_copy(update=update))
+
     def run_replay(
         self,
         periods: Mapping[str, float],

@@ -1,0 +1,174 @@
+"""Judging a requested set-point step before it is applied (issue 14, item 4).
+
+The agent's periods are negotiated for the steps of its test; a step requested at run time
+(``ops/setpoint``, ``wncs inject ... setpoint``, the scenario's ``setpoints:``) may be larger,
+the other way round, or meet saturation the test never did (the JCSTR's downward temperature
+steps: the jacket inflow hits zero). :func:`judge_step` simulates the requested step on the
+non-linear model before it is let through:
+
+* the trial starts from the scenario's initial state, moves every loop to its current set point
+  at once, lets the plant settle for the test's length, then makes the requested step at a
+  random phase of the loop's period, and judges the step's overshoot over the test's length;
+* each of ``realizations`` trials replays its own delay sequence drawn from the accepted
+  proposal's delay distributions (:class:`agents.wncsca.chance.LoopLaw`: the shape located at
+  the loop's mean delay, losses held), seeded from the scenario seed, the loop and the value;
+* the candidates are tried in order: the control periods now in force, then the stepped loop
+  at its benchmark period, then every loop at its benchmark period. The first candidate whose
+  share of trials within the limit is at least ``confidence`` (at most ``floor((1 - confidence)
+  n)`` exceed it) is the verdict: ``apply`` at the control periods, or ``tighten`` to the
+  candidate's periods for the transient (the agent relaxes them after the test's length); when
+  none passes, ``refuse`` with the predicted overshoot (the ``confidence``-quantile of the last
+  candidate's trials).
+
+The plant need not be settled at the current set points when the request comes; the trial
+assumes it is (a step requested mid-transient is judged as if from steady state).
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agents.wncsca.chance import PHASES, LoopLaw, probability_interval, risk_index
+from agents.wncsca.model import LoopModel
+from core.record import loop_metrics
+from core.time import to_ticks, to_units
+
+__all__ = ["StepVerdict", "judge_step"]
+
+
+@dataclass(frozen=True)
+class StepVerdict:
+    """``apply``, ``tighten`` (to ``periods``) or ``refuse`` a requested step, with the share of
+    trials within the limit, its 95 % interval and the predicted (``confidence``-quantile)
+    overshoot at the chosen (or, when refused, the last tried) periods."""
+
+    verdict: str
+    loop: str
+    r_from: float
+    r_to: float
+    periods: dict[str, float]
+    p: float
+    interval: tuple[float, float]
+    overshoot_pct: float
+    tried: list[dict[str, Any]] = field(default_factory=list)
+
+    def reason(self, limit: float) -> str:
+        what = f"{self.loop} {self.r_from:g} -> {self.r_to:g}"
+        odds = (
+            f"P(overshoot <= {limit:g} %) = {self.p:.2f} (95 % CI {self.interval[0]:.2f}-"
+            f"{self.interval[1]:.2f}), predicted overshoot {self.overshoot_pct:.1f} %"
+        )
+        per = ", ".join(f"{n} {p:g}" for n, p in sorted(self.periods.items()))
+        if self.verdict == "apply":
+            return f"step {what}: {odds} at the control periods ({per})"
+        if self.verdict == "tighten":
+            return f"step {what}: periods tightened to {per} for the transient; {odds}"
+        return f"step {what} refused: {odds} even at the periods {per}"
+
+
+def judge_step(
+    model: LoopModel,
+    laws: Mapping[str, LoopLaw],
+    delays: Mapping[str, float],
+    control: Mapping[str, float],
+    setpoints: Mapping[str, float],
+    loop: str,
+    value: float,
+    seed: int,
+) -> StepVerdict:
+    """The verdict on stepping ``loop`` from ``setpoints[loop]`` to ``value`` (module
+    docstring); ``delays`` are the loops' mean control-path delays, ``control`` the control
+    periods in force."""
+    cfg = model.config
+    limit, confidence = cfg.overshoot_limit, cfg.confidence
+    n = max(2, cfg.checks)
+    k_max = risk_index(n, confidence)
+    settle = _test_length(model)
+    bench = dict(model.benchmark)
+    candidates = [dict(control), {**control, loop: min(control[loop], bench[loop])}, bench]
+    unique: list[dict[str, float]] = []
+    for c in candidates:
+        if c not in unique:
+            unique.append(c)
+    rng = np.random.default_rng([seed, zlib.crc32(loop.encode()), to_ticks(abs(value)) % 2**31])
+    u_delay = {lp: rng.random(100_000) for lp in sorted(model.loops)}
+    u_loss = {lp: rng.random(100_000) for lp in sorted(model.loops)}
+    phases = rng.integers(0, PHASES, size=n)
+    tried: list[dict[str, Any]] = []
+    last: tuple[dict[str, float], float, tuple[float, float], float] | None = None
+    for periods in unique:
+        overshoots = []
+        for r in range(n):
+            p = to_ticks(periods[loop])
+            t_step = to_units((to_ticks(settle) // p) * p + (int(phases[r]) * p) // PHASES)
+            steps = [(0.0, name, float(v)) for name, v in sorted(setpoints.items())]
+            steps.append((t_step, loop, float(value)))
+            traces = _traces(laws, delays, periods, t_step + settle, u_delay, u_loss, r)
+            rec = model.trials.run_steps(periods, delays, steps, t_step + settle, traces)
+            model.simulations += 1
+            overshoots.append(_step_overshoot(rec, loop, t_step))
+        os = np.asarray(overshoots)
+        within = int(np.sum(os <= limit))
+        ci = probability_interval(within, n)
+        q = float(np.quantile(os, confidence)) if np.isfinite(os).all() else math.inf
+        tried.append({"periods": dict(periods), "p": within / n, "overshoot_pct": q})
+        last = (periods, within / n, ci, q)
+        if n - within <= k_max:
+            verdict = "apply" if periods == dict(control) else "tighten"
+            return StepVerdict(
+                verdict,
+                loop,
+                float(setpoints[loop]),
+                float(value),
+                dict(periods),
+                within / n,
+                ci,
+                q,
+                tried,
+            )
+    assert last is not None
+    periods, share, ci, q = last
+    return StepVerdict(
+        "refuse", loop, float(setpoints[loop]), float(value), dict(periods), share, ci, q, tried
+    )
+
+
+def _test_length(model: LoopModel) -> float:
+    """The agent's test horizon (time units): how long a trial settles and judges a step."""
+    return float(model.trials.scenario.end_time)
+
+
+def _traces(
+    laws: Mapping[str, LoopLaw],
+    delays: Mapping[str, float],
+    periods: Mapping[str, float],
+    end: float,
+    u_delay: Mapping[str, np.ndarray],
+    u_loss: Mapping[str, np.ndarray],
+    r: int,
+) -> dict[str, list[float | None]]:
+    out: dict[str, list[float | None]] = {}
+    for name, law in laws.items():
+        count = int(end / periods[name]) + 2
+        lo = (r * count) % max(1, len(u_delay[name]) - count)
+        d = np.maximum(
+            0.0, float(delays.get(name, 0.0)) + law.deviations(u_delay[name][lo : lo + count])
+        )
+        lost = u_loss[name][lo : lo + count] < law.loss
+        out[name] = [None if x else float(v) for v, x in zip(d, lost, strict=True)]
+    return out
+
+
+def _step_overshoot(rec: Any, loop: str, t_step: float) -> float:
+    steps = loop_metrics(rec, loop)["steps"]
+    for s in steps:
+        if abs(s["t"] - t_step) < 1e-9:
+            v = s["overshoot_pct"]
+            return math.inf if v is None or not math.isfinite(v) else float(v)
+    return math.inf
