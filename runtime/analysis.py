@@ -4,7 +4,8 @@ same ``wncsca`` section a run's ``summary.json`` has, and the Fig. 10-style plot
 
 Delays come from ``--delays loop=value,...`` or, by default, from the scenario itself: wired loops
 their ``tau_d + tau_a``, loops over a gateway the estimate the agent is configured to use from the
-gateway's initial configuration.
+gateway's initial configuration, with its delay distributions (the chance method judges by
+them; every method's assignment gets each loop's jitter margin, :mod:`agents.wncsca.jitter`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from typing import Any
 from agents.wncsca.bounds import delay_bounds
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import assign
-from agents.wncsca.decision import decide
+from agents.wncsca.decision import control_path_delays, decide
+from agents.wncsca.guarantee import judge_by_risk, path_laws
+from agents.wncsca.jitter import loop_margins
 from agents.wncsca.plots import fig10
 from gateway.carrier import PathCarrier
 from runtime.direct import loop_model
@@ -98,11 +101,33 @@ def analyze(
             for n, d in delays.items()
         }
     t1 = time.perf_counter()
-    decision = decide(None, paths, bounds, config.estimate)
+    laws = path_laws(paths, model.loops)
+    risk = None
+    if config.method == "chance":
+        known, used = control_path_delays(paths, model.loops, config.estimate)
+        down = [n for n, d in known.items() if d is None]
+        if down:
+            decision = decide(None, paths, bounds, config.estimate, quantile=config.confidence)
+        else:
+            decision, risk = judge_by_risk(
+                model,
+                laws,
+                {n: float(d or 0.0) for n, d in known.items()},
+                None,
+                used,
+                seed=scenario.seed,
+                carried=model.loops,
+            )
+    else:
+        decision = decide(None, paths, bounds, config.estimate, quantile=config.confidence)
     entry = {"t": 0.0, "subject": "proposal", **decision.as_dict()}
     assignments = []
+    margins = None
     if decision.verdict == "accept":
-        result = assign(model, decision.delays, _hops(paths))
+        result = risk or assign(model, decision.delays, _hops(paths))
+        margins = result.extra.get("jitter_margin") or loop_margins(
+            model, result.periods, decision.delays, laws
+        )
         search = result.as_dict()
         assignments.append(
             {
@@ -130,6 +155,7 @@ def analyze(
             "bounds_time_s": t_bounds,
             "decisions": [entry],
             "assignments": assignments,
+            "jitter_margin": margins,
             "simulations": model.simulations,
         },
     }

@@ -238,10 +238,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     analyze.add_argument(
         "--method",
-        choices=("paper", "fast"),
+        choices=("paper", "fast", "chance"),
         default=None,
         help="paper: seed 000's successive approximation; fast: the same question on the "
-        "linearised loops (default: the method in the scenario's agent)",
+        "linearised loops; chance: P(overshoot <= limit) >= confidence over the delay "
+        "distributions (default: the method in the scenario's agent)",
     )
     analyze.add_argument("--out", required=True, metavar="DIR", help="output directory")
 
@@ -414,6 +415,11 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     for name, b in w["bounds"].items():
         print(f"{name}: largest tolerable delay at the benchmark periods {b['tau_d_max']:.4g}")
     print(format_timeline(summary))
+    for name, m in sorted((w.get("jitter_margin") or {}).items()):
+        print(
+            f"{name}: jitter margin {m['margin']:.4g} against a delay variation of "
+            f"{m['variation']:.4g} ({'within' if m['ok'] else 'OUTSIDE'}; Kao-Lincoln)"
+        )
     print(f"artefacts in {out}: summary.json" + (", search.png" if w["assignments"] else ""))
     return 0
 

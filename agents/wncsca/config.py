@@ -166,10 +166,13 @@ class WncscaConfig(BaseModel):
         description="fast method: each loop's longest period with the others fixed (the "
         "paper's answer), or the joint choice using the least network energy",
     )
-    estimate: Literal["timestamps", "ping", "hops"] = Field(
+    estimate: Literal["timestamps", "ping", "hops", "quantile"] = Field(
         default="hops",
-        description="which of a proposal's delay estimates is the control-path delay; a missing "
-        "one falls back to the others in the order timestamps, ping, hops",
+        description="which of a proposal's delay estimates is the control-path delay (the "
+        "paper's three are means; a missing one falls back to the others in the order "
+        "timestamps, ping, hops); quantile: the confidence-quantile of the path's delay "
+        "distribution, a constant delay for the paper and fast methods (the chance method "
+        "takes the whole distribution, located at one of the means)",
     )
     order: list[str] | None = Field(
         default=None, description="loops in the order the paper's method searches them"
@@ -214,4 +217,10 @@ class WncscaConfig(BaseModel):
                 raise ValueError(f"alarm.{loop}: must be > 0, got {band}")
         if self.order is not None and len(set(self.order)) != len(self.order):
             raise ValueError(f"order: a loop is named twice in {self.order}")
+        if self.method == "chance" and self.estimate == "quantile":
+            raise ValueError(
+                "estimate: quantile is a constant delay for the paper and fast methods; the "
+                "chance method takes the whole distribution (estimate: hops, ping or timestamps "
+                "says where its mean is)"
+            )
         return self

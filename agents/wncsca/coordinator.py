@@ -33,7 +33,7 @@ from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
-from agents.wncsca.chance import ChanceModel, LoopLaw
+from agents.wncsca.chance import LoopLaw
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.decision import (
     Decision,
@@ -43,8 +43,7 @@ from agents.wncsca.decision import (
     path_delay,
 )
 from agents.wncsca.fast import fast_periods
-from agents.wncsca.guarantee import chance_periods, path_laws
-from agents.wncsca.jitter import loop_margins
+from agents.wncsca.guarantee import judge_by_risk, path_laws
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
@@ -192,7 +191,14 @@ class Coordinator:
             except ProposalError as err:
                 return self._refused(network, pid, str(err))
         else:
-            decision = decide(pid, paths, self.bounds, self.config.estimate, wired=others)
+            decision = decide(
+                pid,
+                paths,
+                self.bounds,
+                self.config.estimate,
+                wired=others,
+                quantile=self.config.confidence,
+            )
         if decision.verdict == "refuse":
             return Negotiation(decision, network)
         try:
@@ -246,50 +252,12 @@ class Coordinator:
         if down:
             reasons = tuple(f"{n}: control path down (no route)" for n in down)
             return Decision(pid, "reject", reasons, known, {}, used, tuple(down)), None
-        model = ChanceModel(self.model, laws, seed=self.scenario.seed)
-        model.check(self.benchmark, known)  # the linearisation corrected at the start point
-        result = chance_periods(model, known)
-        guarantee = result.extra["guarantee"]
-        limit, conf = self.config.overshoot_limit, self.config.confidence
-        lines = []
-        for n in self.loops:
-            pr = guarantee["probability"][n]
-            law = guarantee["laws"].get(n)
-            what = (
-                f"delay mean {law['mean']:.4g}, p95 {law['p95']:.4g}, loss {law['loss']:.2g}"
-                if law is not None and n in carried
-                else f"delay {known[n]:.4g}"
-            )
-            lines.append(
-                f"{n}: P(overshoot <= {limit:g} %) = {pr['p']:.3f} "
-                f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
-                f"{result.periods[n]:g} ({what})"
-            )
-        margins = loop_margins(self.model, result.periods, known, laws)
-        result.extra["jitter_margin"] = margins
-        unstable = [n for n in self.loops if n in margins and not margins[n]["ok"]]
-        lines += [
-            f"{n}: jitter margin {m['margin']:.4g} {'>' if m['ok'] else '<='} delay variation "
-            f"{m['variation']:.4g} (nominal {m['nominal_delay']:.4g}, Kao-Lincoln)"
-            for n, m in sorted(margins.items())
-        ]
-        if unstable:
-            reasons = (
-                f"outside the jitter margin of {unstable}: stability is not guaranteed under "
-                "the proposal's delay variation, whatever the simulations say",
-                *lines,
-            )
-            return Decision(pid, "reject", reasons, known, {}, used, tuple(unstable)), None
-        if result.feasible:
-            self.laws.update(laws)
-            return Decision(pid, "accept", tuple(lines), known, {}, used), result
-        offending = tuple(n for n in carried if guarantee["probability"][n]["p"] < conf) or carried
-        reasons = (
-            f"no sampling periods keep P(overshoot <= {limit:g} %) >= {conf:g}: "
-            f"{result.reason or 'search infeasible'}",
-            *lines,
+        decision, result = judge_by_risk(
+            self.model, laws, known, pid, used, seed=self.scenario.seed, carried=carried
         )
-        return Decision(pid, "reject", reasons, known, {}, used, offending), None
+        if decision.verdict == "accept":
+            self.laws.update(laws)
+        return decision, result
 
     def _link_delays(self, network: str, link_paths: Mapping[str, Any]) -> dict[str, float]:
         """Delay of every link of ``network`` from its path in a proposal (``inf``: no route)."""
@@ -300,7 +268,9 @@ class Coordinator:
             entry = link_paths.get(f"{name}.link")
             if entry is None:
                 raise ProposalError(f"paths.{name}.link: missing (link {name} is on {network})")
-            delay, _ = path_delay(f"{name}.link", entry, self.config.estimate)
+            delay, _ = path_delay(
+                f"{name}.link", entry, self.config.estimate, self.config.confidence
+            )
             out[name] = math.inf if delay is None else delay
         return out
 

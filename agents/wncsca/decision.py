@@ -16,8 +16,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+from pydantic import ValidationError
+
 from agents.wncsca.bounds import DelayBound
 from agents.wncsca.config import ESTIMATES
+from bus_schemas import DelayDistribution
 
 __all__ = ["Decision", "ProposalError", "control_path_delays", "decide", "path_delay"]
 
@@ -52,8 +56,15 @@ class Decision:
         }
 
 
-def path_delay(path: str, entry: Any, preferred: str) -> tuple[float | None, str | None]:
-    """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down."""
+def path_delay(
+    path: str, entry: Any, preferred: str, quantile: float = 0.95
+) -> tuple[float | None, str | None]:
+    """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down.
+
+    ``preferred="quantile"``: the ``quantile`` of the entry's delay ``distribution`` (a
+    constant delay the path's delivered packets exceed with probability ``1 - quantile``; with
+    a sensor and an actuator path the sum of their quantiles, an upper bound of the quantile of
+    the sum); without a distribution the paper's estimates are used, in their order."""
     if not isinstance(entry, Mapping):
         raise ProposalError(f"paths.{path}: expected a mapping, got {type(entry).__name__}")
     hops = entry.get("hops")
@@ -81,6 +92,14 @@ def path_delay(path: str, entry: Any, preferred: str) -> tuple[float | None, str
             raise ProposalError(f"paths.{path}.estimates.{name}: a delay must be >= 0, got {value}")
     if hops < 0:
         return None, None
+    if preferred == "quantile" and entry.get("distribution") is not None:
+        try:
+            dist = DelayDistribution.model_validate(entry["distribution"])
+        except ValidationError as err:
+            first = err.errors()[0]
+            where = ".".join(str(p) for p in first["loc"])
+            raise ProposalError(f"paths.{path}.distribution.{where}: {first['msg']}") from None
+        return float(np.interp(quantile, dist.probabilities, dist.delays)), "quantile"
     order = [preferred, *(e for e in ESTIMATES if e != preferred)]
     for name in order:
         value = estimates.get(name)
@@ -90,7 +109,7 @@ def path_delay(path: str, entry: Any, preferred: str) -> tuple[float | None, str
 
 
 def control_path_delays(
-    paths: Any, loops: tuple[str, ...], preferred: str
+    paths: Any, loops: tuple[str, ...], preferred: str, quantile: float = 0.95
 ) -> tuple[dict[str, float | None], dict[str, str]]:
     """Each loop's control-path delay (``None``: a path of the loop is down) and the estimate used.
 
@@ -112,7 +131,7 @@ def control_path_delays(
             raise ProposalError(f"paths.{path}: unknown loop {loop!r} (loops: {list(loops)})")
         if direction not in _DIRECTIONS:
             raise ProposalError(f"paths.{path}: unknown direction {direction!r}")
-        value, name = path_delay(path, paths[path], preferred)
+        value, name = path_delay(path, paths[path], preferred, quantile)
         if value is None or (loop in delays and delays[loop] is None):
             delays[loop] = None
             continue
@@ -131,6 +150,7 @@ def decide(
     preferred: str,
     *,
     wired: Mapping[str, float] | None = None,
+    quantile: float = 0.95,
 ) -> Decision:
     """Accept or reject a proposal (III.E step 2); refuse it when it is malformed.
 
@@ -141,7 +161,7 @@ def decide(
     wired = dict(wired or {})
     carried = tuple(n for n in loops if n not in wired)
     try:
-        delays, used = control_path_delays(paths, carried, preferred)
+        delays, used = control_path_delays(paths, carried, preferred, quantile)
     except ProposalError as err:
         return Decision(proposal, "refuse", (f"proposal refused: {err}",))
     delays = {**{n: float(v) for n, v in wired.items()}, **delays}

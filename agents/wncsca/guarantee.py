@@ -24,13 +24,14 @@ import numpy as np
 from pydantic import ValidationError
 
 from agents.wncsca.assignment import Assignment
-from agents.wncsca.bounds import DelayBound, largest_delay
 from agents.wncsca.chance import ChanceModel, LoopLaw
-from agents.wncsca.decision import ProposalError
+from agents.wncsca.decision import Decision, ProposalError
+from agents.wncsca.jitter import loop_margins
+from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from bus_schemas import DelayDistribution
 
-__all__ = ["ROUNDS", "path_laws", "risk_bounds", "chance_periods"]
+__all__ = ["ROUNDS", "path_laws", "chance_periods", "judge_by_risk"]
 
 ROUNDS = 3
 """Searches on corrected predictions after the first, at most."""
@@ -88,12 +89,6 @@ def path_laws(paths: Any, loops: tuple[str, ...]) -> dict[str, LoopLaw]:
     return out
 
 
-def risk_bounds(model: ChanceModel) -> dict[str, DelayBound]:
-    """Every loop's largest mean control-path delay within the risk, at the benchmark periods
-    (the other loops at zero delay, as the paper's bounds)."""
-    return {loop: largest_delay(model, loop) for loop in model.loops}
-
-
 def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignment:
     """The paper's search on the risk, checked on the non-linear model and repeated on the
     corrected prediction (module docstring); the assignment's ``extra`` holds the guarantee."""
@@ -148,3 +143,63 @@ def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignmen
         },
     }
     return result
+
+
+def judge_by_risk(
+    base: LoopModel,
+    laws: Mapping[str, LoopLaw],
+    known: Mapping[str, float],
+    pid: int | None,
+    used: Mapping[str, str],
+    *,
+    seed: int,
+    carried: tuple[str, ...],
+) -> tuple[Decision, Assignment | None]:
+    """III.E steps 2-3 on the risk: accept when periods exist that keep every loop's
+    ``P(overshoot <= limit) >= confidence`` under its delay law (:func:`chance_periods`) and
+    every loop's delay variation there is within its jitter margin
+    (:func:`agents.wncsca.jitter.loop_margins`), else reject naming the loops; ``known`` are the
+    loops' mean control-path delays, ``carried`` the loops the proposing network carries."""
+    model = ChanceModel(base, laws, seed=seed)
+    model.check(model.benchmark, known)  # the linearisation corrected at the start point
+    result = chance_periods(model, known)
+    guarantee = result.extra["guarantee"]
+    limit, conf = base.config.overshoot_limit, base.config.confidence
+    lines = []
+    for n in base.loops:
+        pr = guarantee["probability"][n]
+        law = guarantee["laws"].get(n)
+        what = (
+            f"delay mean {law['mean']:.4g}, p95 {law['p95']:.4g}, loss {law['loss']:.2g}"
+            if law is not None and n in carried
+            else f"delay {known[n]:.4g}"
+        )
+        lines.append(
+            f"{n}: P(overshoot <= {limit:g} %) = {pr['p']:.3f} "
+            f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
+            f"{result.periods[n]:g} ({what})"
+        )
+    margins = loop_margins(base, result.periods, known, laws)
+    result.extra["jitter_margin"] = margins
+    unstable = [n for n in base.loops if n in margins and not margins[n]["ok"]]
+    lines += [
+        f"{n}: jitter margin {m['margin']:.4g} {'>' if m['ok'] else '<='} delay variation "
+        f"{m['variation']:.4g} (nominal {m['nominal_delay']:.4g}, Kao-Lincoln)"
+        for n, m in sorted(margins.items())
+    ]
+    if unstable:
+        reasons = (
+            f"outside the jitter margin of {unstable}: stability is not guaranteed under "
+            "the proposal's delay variation, whatever the simulations say",
+            *lines,
+        )
+        return Decision(pid, "reject", reasons, known, {}, used, tuple(unstable)), None
+    if result.feasible:
+        return Decision(pid, "accept", tuple(lines), known, {}, used), result
+    offending = tuple(n for n in carried if guarantee["probability"][n]["p"] < conf) or carried
+    reasons = (
+        f"no sampling periods keep P(overshoot <= {limit:g} %) >= {conf:g}: "
+        f"{result.reason or 'search infeasible'}",
+        *lines,
+    )
+    return Decision(pid, "reject", reasons, known, {}, used, offending), None

@@ -1,0 +1,94 @@
+"""The chance method on a jittery, lossy network (issue 14): the agent's decisions, a judged
+set-point step, the engines' agreement, and the constant-delay demo's periods."""
+
+from __future__ import annotations
+
+import pytest
+
+from runtime.launcher import launch
+from tests.conftest import SCENARIOS, write_variant
+from tests.integration.test_engines_agree import _without_wall_clock
+
+JITTER = SCENARIOS / "jcstr_wncs_jitter.yaml"
+
+
+def _with_a_downward_step(data: dict) -> None:
+    """To 7 pu, and a 4 C downward temperature step requested at 6 pu."""
+    data["end_time"] = 7.0
+    data["modes"] = []
+    data["setpoints"].append({"t": 6.0, "loop": "temperature", "value": 52.0})
+
+
+def _run(tmp_path, engine: str) -> dict:
+    path = write_variant(tmp_path, JITTER, "down.yaml", _with_a_downward_step)
+    res = launch(path, tmp_path / engine, engine=engine)
+    assert res.code == 0, res.error
+    return res.summary
+
+
+@pytest.fixture(scope="module")
+def direct_run(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("chance"), "direct")
+
+
+def test_the_agent_assigns_periods_with_their_probability_and_jitter_margin(direct_run):
+    w = direct_run["wncsca"]
+    proposal = next(d for d in w["decisions"] if d["subject"] == "proposal")
+    assert proposal["verdict"] == "accept"
+    text = " ".join(proposal["reasons"])
+    assert "P(overshoot <= 25 %)" in text and "95 % CI" in text and "jitter margin" in text
+    search = next(a["search"] for a in w["assignments"] if "search" in a)
+    assert search["method"] == "chance"
+    for loop, pr in search["guarantee"]["probability"].items():
+        assert pr["low"] <= pr["p"] <= pr["high"], loop
+        assert pr["p"] >= 0.95, loop  # the constraint the periods were chosen to meet
+        assert search["jitter_margin"][loop]["ok"], loop
+    # the guarantee costs samples: both loops faster than the paper's 0.275 / 0.138 pu
+    periods = search["periods"]
+    assert periods["level"] < 0.275 and periods["temperature"] < 0.138
+
+
+def test_a_downward_temperature_step_is_refused_naming_loop_step_and_overshoot(direct_run):
+    w = direct_run["wncsca"]
+    refused = [d for d in w["decisions"] if d["subject"] == "setpoint" and d["verdict"] == "refuse"]
+    assert len(refused) == 1
+    reason = refused[0]["reasons"][0]
+    assert "temperature 56 -> 52" in reason and "predicted overshoot" in reason
+    predicted = float(reason.split("predicted overshoot ")[1].split(" %")[0])
+    assert predicted > 25.0
+    # nothing changed: the temperature's only step is the paper's, the set point stays 56
+    steps = direct_run["loops"]["temperature"]["steps"]
+    assert [(s["from"], s["to"]) for s in steps] == [(52.0, 56.0)]
+    # the paper's two steps were judged and let through at the negotiated periods
+    judged = [d for d in w["decisions"] if d["subject"] == "setpoint" and d["verdict"] == "accept"]
+    assert len(judged) == 2 and all("at the control periods" in d["reasons"][-1] for d in judged)
+
+
+@pytest.mark.slow
+def test_the_chance_method_decides_on_the_bus_as_on_the_direct_engine(direct_run, tmp_path):
+    bus = _run(tmp_path, "threads")
+    assert _without_wall_clock(bus["wncsca"]) == _without_wall_clock(direct_run["wncsca"])
+    assert _without_wall_clock(bus["loops"]) == _without_wall_clock(direct_run["loops"])
+
+
+def _first_periods(tmp_path, method: str) -> dict:
+    def edit(data: dict) -> None:
+        data["end_time"] = 1.0
+        data["setpoints"], data["modes"] = [], []
+        data["nodes"]["network"]["events"] = []
+        data["nodes"]["wncsca"]["method"] = method
+
+    path = write_variant(tmp_path, SCENARIOS / "jcstr_wncs.yaml", f"{method}.yaml", edit)
+    res = launch(path, tmp_path / method, engine="direct")
+    assert res.code == 0, res.error
+    return next(a["search"] for a in res.summary["wncsca"]["assignments"] if "search" in a)[
+        "periods"
+    ]
+
+
+def test_on_the_demo_the_chance_method_keeps_the_papers_periods_within_ten_percent(tmp_path):
+    paper = _first_periods(tmp_path, "paper")
+    chance = _first_periods(tmp_path, "chance")
+    assert paper == {"level": 0.275, "temperature": 0.138}
+    for loop in paper:
+        assert 0.9 <= chance[loop] / paper[loop] <= 1.1, (loop, chance[loop], paper[loop])
