@@ -117,6 +117,7 @@ def analyze(
                 used,
                 seed=scenario.seed,
                 carried=model.loops,
+                with_bounds=True,
             )
     else:
         decision = decide(None, paths, bounds, config.estimate, quantile=config.confidence)

@@ -1,17 +1,19 @@
 """The chance method end to end (issue 14): a proposal's delay distributions read and checked,
-each loop's risk bound, the paper's period search on the risk, the non-linear check, and the
+the paper's period search on the risk, the non-linear check, the jitter margins, and the
 probability reported with its interval.
 
 :func:`path_laws` turns a proposal's paths into each loop's :class:`~agents.wncsca.chance.LoopLaw`
 (the sensor path's distribution, and the actuator path's when it is on the WSN too: the shapes
-are combined by sampling their sum, the losses as independent); :func:`risk_bounds` is III.E
-step 2 on the risk (the largest *mean* control-path delay with the proposal's shape that keeps
-``P(overshoot <= limit) >= confidence`` at the benchmark periods); :func:`chance_periods` is step
-3 on the risk, then checked: the realizations replayed on the non-linear model correct the
-linear prediction where the choice lies, and the search is repeated with the correction until the
-checked choice holds with every loop in the paper's band ``[limit - eps_OS, limit]`` or the
-choice no longer changes (at most :data:`ROUNDS` repeats; the last choice that held its own check
-is kept).
+are combined by sampling their sum, the losses as independent). :func:`chance_periods` is III.E
+step 3 on the risk, then checked: the realizations replayed on the non-linear model correct the
+linear prediction where the choice lies, and the search is repeated with the correction until
+the checked choice holds with every loop in the paper's band ``[limit - eps_OS, limit]`` or the
+choice no longer changes (at most :data:`ROUNDS` repeats; the last choice that held its own
+check is kept). :func:`judge_by_risk` is step 2 on the risk: a proposal is accepted when such
+periods exist and every loop is within its jitter margin there (the paper's test at the
+benchmark periods would reject a network on which a faster loop is safe). :func:`risk_bounds`
+is the delay bound on the risk: the largest *mean* control-path delay, the proposal's shape
+held, that keeps ``P(overshoot <= limit) >= confidence`` at the assigned periods.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from agents.wncsca.assignment import Assignment
+from agents.wncsca.bounds import largest_delay
 from agents.wncsca.chance import ChanceModel, LoopLaw
 from agents.wncsca.decision import Decision, ProposalError
 from agents.wncsca.jitter import loop_margins
@@ -31,10 +34,20 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from bus_schemas import DelayDistribution
 
-__all__ = ["ROUNDS", "path_laws", "chance_periods", "judge_by_risk"]
+__all__ = [
+    "ROUNDS",
+    "BOUND_RESOLUTION",
+    "path_laws",
+    "risk_bounds",
+    "chance_periods",
+    "judge_by_risk",
+]
 
 ROUNDS = 3
 """Searches on corrected predictions after the first, at most."""
+
+BOUND_RESOLUTION = 0.005
+"""Coarsest grid of the risk bounds, time units."""
 
 _SHAPE_DRAWS = 20000
 
@@ -87,6 +100,20 @@ def path_laws(paths: Any, loops: tuple[str, ...]) -> dict[str, LoopLaw]:
                 1.0 - keep,
             )
     return out
+
+
+def risk_bounds(
+    model: ChanceModel, periods: Mapping[str, float], delays: Mapping[str, float]
+) -> dict[str, float]:
+    """Each loop's largest mean control-path delay (the proposal's shape held, the other loops
+    at their ``delays``) that keeps its risk overshoot within the limit at ``periods``: III.E
+    step 2's bound on the risk, at the assigned periods (how much worse the network may get
+    before they are unsafe), on a grid of at least :data:`BOUND_RESOLUTION`."""
+    res = max(model.config.delay_resolution, BOUND_RESOLUTION)
+    return {
+        n: largest_delay(model, n, periods=periods, delays=delays, resolution=res).tau_d_max  # type: ignore[arg-type]
+        for n in model.loops
+    }
 
 
 def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignment:
@@ -154,12 +181,16 @@ def judge_by_risk(
     *,
     seed: int,
     carried: tuple[str, ...],
+    with_bounds: bool = False,
 ) -> tuple[Decision, Assignment | None]:
     """III.E steps 2-3 on the risk: accept when periods exist that keep every loop's
     ``P(overshoot <= limit) >= confidence`` under its delay law (:func:`chance_periods`) and
     every loop's delay variation there is within its jitter margin
     (:func:`agents.wncsca.jitter.loop_margins`), else reject naming the loops; ``known`` are the
-    loops' mean control-path delays, ``carried`` the loops the proposing network carries."""
+    loops' mean control-path delays, ``carried`` the loops the proposing network carries.
+    ``with_bounds``: also each loop's risk bound at the assigned periods (:func:`risk_bounds`;
+    ``wncs analyze`` asks for it, the live agent does not: it about doubles the decision time,
+    and the periods were chosen so that the bound sits near the delay now)."""
     model = ChanceModel(base, laws, seed=seed)
     model.check(model.benchmark, known)  # the linearisation corrected at the start point
     result = chance_periods(model, known)
@@ -195,7 +226,15 @@ def judge_by_risk(
         )
         return Decision(pid, "reject", reasons, known, {}, used, tuple(unstable)), None
     if result.feasible:
-        return Decision(pid, "accept", tuple(lines), known, {}, used), result
+        bounds = risk_bounds(model, result.periods, known) if with_bounds else {}
+        if bounds:
+            result.extra["risk_bounds"] = bounds
+        lines += [
+            f"{n}: at these periods its mean control-path delay may grow to {b:.4g} "
+            f"(now {known[n]:.4g}) before the risk is exceeded"
+            for n, b in sorted(bounds.items())
+        ]
+        return Decision(pid, "accept", tuple(lines), known, bounds, used), result
     offending = tuple(n for n in carried if guarantee["probability"][n]["p"] < conf) or carried
     reasons = (
         f"no sampling periods keep P(overshoot <= {limit:g} %) >= {conf:g}: "

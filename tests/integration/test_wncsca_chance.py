@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import pytest
 
+from runtime.analysis import analyze
 from runtime.launcher import launch
+from runtime.scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_engines_agree import _without_wall_clock
 
@@ -92,3 +94,17 @@ def test_on_the_demo_the_chance_method_keeps_the_papers_periods_within_ten_perce
     assert paper == {"level": 0.275, "temperature": 0.138}
     for loop in paper:
         assert 0.9 <= chance[loop] / paper[loop] <= 1.1, (loop, chance[loop], paper[loop])
+
+
+def test_wncs_analyze_judges_by_risk_with_bounds_and_margins():
+    summary = analyze(load_scenario(JITTER))
+    w = summary["wncsca"]
+    decision = w["decisions"][0]
+    assert decision["verdict"] == "accept"
+    search = w["assignments"][0]["search"]
+    assert search["method"] == "chance"
+    # the risk bound at the assigned periods: the delay now is within it, on its 0.005 grid
+    for loop, bound in decision["bounds"].items():
+        assert bound >= decision["delays"][loop] - 0.005, loop
+    assert set(w["jitter_margin"]) == {"level", "temperature"}
+    assert all(m["ok"] for m in w["jitter_margin"].values())
