@@ -66,8 +66,12 @@ def run_one(path: str, method: str, seed: int, end_time: float | None = None) ->
         data["modes"] = [m for m in data["modes"] if m["t"] <= end_time]
     scenario = type(scenario).model_validate(data)
     rec = simulate(scenario)
-    assigned = next(r for r in rec.wncsca["rates"] if r.get("assignment"))
-    guarantee = assigned["assignment"].get("guarantee")
+    assigned = next((r for r in rec.wncsca["rates"] if r.get("assignment")), None)
+    verdict = next(d for d in rec.wncsca["decisions"] if d["subject"] == "proposal")
+    if assigned is None:  # rejected, no alternative: the benchmark periods stay
+        assigned = rec.wncsca["rates"][-1]
+        print(f"{method} seed {seed}: proposal {verdict['verdict']}: {verdict['reasons'][0]}")
+    guarantee = (assigned.get("assignment") or {}).get("guarantee")
     steps = {
         name: [s["overshoot_pct"] for s in loop_metrics(rec, name)["steps"]]
         for name in sorted(rec.loops)
@@ -76,7 +80,8 @@ def run_one(path: str, method: str, seed: int, end_time: float | None = None) ->
         "method": method,
         "seed": seed,
         "periods": {n: to_units(p) for n, p in assigned["control_periods"].items()},
-        "energy": assigned["energy"],
+        "energy": assigned.get("energy"),
+        "verdict": verdict["verdict"],
         "probability": guarantee["probability"] if guarantee else None,
         "steps": steps,
     }
@@ -99,8 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     results = _pool(args.jobs, tasks)
     print(f"## {JITTER.name}: {args.seeds} seeds, direct engine\n")
     print(
-        "| method | periods (pu, seed 0) | lifetime h (assigned / benchmark) | steps > limit + 1 "
-        "| share |"
+        "| method | periods (pu, min-max over seeds) | lifetime h, mean (benchmark) "
+        "| steps > limit + 1 | share |"
     )
     print("|---|---|---|---:|---:|")
     shares = {}
@@ -109,11 +114,18 @@ def main(argv: list[str] | None = None) -> int:
         steps = [v for r in rows for vs in r["steps"].values() for v in vs if v is not None]
         over = sum(1 for v in steps if v > args.limit + 1.0)
         shares[method] = over / len(steps)
-        e = rows[0]["energy"] or {}
-        per = ", ".join(f"{n} {p:g}" for n, p in rows[0]["periods"].items())
-        a, b = e.get("lifetime_h_assigned", math.nan), e.get("lifetime_h_benchmark", math.nan)
-        life = f"{a:.0f} / {b:.0f}"
-        print(f"| {method} | {per} | {life} | {over} of {len(steps)} | {shares[method]:.1%} |")
+        rejected = sum(1 for r in rows if r["verdict"] != "accept")
+        per = ", ".join(
+            f"{n} {min(r['periods'][n] for r in rows):g}-{max(r['periods'][n] for r in rows):g}"
+            for n in sorted(rows[0]["periods"])
+        )
+        if rejected:
+            per += f" ({rejected} rejected: benchmark periods)"
+        lives = [r["energy"] for r in rows if r["energy"]]
+        a = sum(e["lifetime_h_assigned"] for e in lives) / max(1, len(lives))
+        b = lives[0]["lifetime_h_benchmark"] if lives else math.nan
+        share = f"{over} of {len(steps)} | {shares[method]:.1%}"
+        print(f"| {method} | {per} | {a:.0f} ({b:.0f}) | {share} |")
     print("\n| method | loop | measured P(OS <= limit) [95 % CI] | predicted (mean over seeds) |")
     print("|---|---|---|---|")
     for method in METHODS:

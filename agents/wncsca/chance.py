@@ -116,6 +116,24 @@ def probability_interval(within: int, total: int) -> tuple[float, float]:
     return lo, hi
 
 
+class _Uniforms:
+    """Uniform draws ``(R, k)`` whose first ``k`` columns do not depend on how many are asked
+    for: drawn in blocks of :data:`_BLOCK` columns, in order."""
+
+    def __init__(self, rng: np.random.Generator, rows: int) -> None:
+        self._rng, self._rows = rng, rows
+        self._data = np.zeros((rows, 0))
+
+    def take(self, k: int) -> NDArray[np.float64]:
+        while self._data.shape[1] < k:
+            block = self._rng.random((_BLOCK, self._rows)).T
+            self._data = np.concatenate([self._data, block], axis=1)
+        return self._data[:, :k]
+
+
+_BLOCK = 64
+
+
 class LinearMonteCarlo:
     """The agent's test on the linearised loops over ``realizations`` random realizations (see
     the module docstring).
@@ -213,11 +231,15 @@ class LinearMonteCarlo:
             self.ViB[k], self.Vic[k], self.CyV[k] = Vi @ B, Vi @ c, Cy @ V
         self.initial = np.array([lin.initial[n] for n in self.loops])
         rng = np.random.default_rng(seed)
-        horizon = int(self.end / min(1e-3, self.monitor)) + 2
-        # common random numbers, as many as the shortest period could use
-        self._u_delay = rng.random((n_loops, self.R, horizon))
-        self._u_loss = rng.random((n_loops, self.R, horizon))
         self.phase_j = rng.integers(0, PHASES, size=(len(self.steps), self.R))
+        # common random numbers: sample k of realization r draws the same uniforms whatever
+        # the period (the streams grow in blocks of samples as shorter periods need more)
+        self._u_delay = [
+            _Uniforms(np.random.default_rng([seed, 1, i]), self.R) for i in range(n_loops)
+        ]
+        self._u_loss = [
+            _Uniforms(np.random.default_rng([seed, 2, i]), self.R) for i in range(n_loops)
+        ]
         self.simulations = 0
 
     # -- one evaluation -----------------------------------------------------------------------
@@ -244,14 +266,12 @@ class LinearMonteCarlo:
         for i, n in enumerate(loops):
             ks = np.arange(int(math.floor(self.end / h[n] + 1e-9)) + 1)
             n_samples[n] = len(ks)
-            if len(ks) > self._u_delay.shape[2]:
-                raise ValueError(f"chance model: period of {n!r} too short ({h[n]})")
             t_s = np.broadcast_to(ks * h[n], (R, len(ks)))
             add(t_s, _SAMPLE, i, ks)
             law = self.laws[n]
-            d = np.maximum(0.0, mu[n] + law.deviations(self._u_delay[i, :, : len(ks)]))
+            d = np.maximum(0.0, mu[n] + law.deviations(self._u_delay[i].take(len(ks))))
             d = np.rint(d * TICKS_PER_UNIT) / TICKS_PER_UNIT
-            lost = self._u_loss[i, :, : len(ks)] < law.loss
+            lost = self._u_loss[i].take(len(ks)) < law.loss
             t_d = np.where(lost, np.inf, t_s + d)
             add(t_d, _DELIVER, i, ks)
         step_t = np.zeros((len(self.steps), R))
@@ -428,9 +448,9 @@ class LinearMonteCarlo:
             count = int(math.floor(self.end / h + 1e-9)) + 1
             law = self.laws[n]
             d = np.maximum(
-                0.0, float(delays.get(n, 0.0)) + law.deviations(self._u_delay[i, r, :count])
+                0.0, float(delays.get(n, 0.0)) + law.deviations(self._u_delay[i].take(count)[r])
             )
-            lost = self._u_loss[i, r, :count] < law.loss
+            lost = self._u_loss[i].take(count)[r] < law.loss
             out[n] = [None if x else float(v) for v, x in zip(d, lost, strict=True)]
         phases = {
             (tick, loop): int(self.phase_j[s, r]) for s, (tick, loop, _) in enumerate(self.steps)

@@ -10,7 +10,13 @@ import pytest
 import scipy.stats
 from pydantic import ValidationError
 
-from agents.wncsca.chance import ChanceModel, LoopLaw, probability_interval, risk_index
+from agents.wncsca.chance import (
+    ChanceModel,
+    LoopLaw,
+    _Uniforms,
+    probability_interval,
+    risk_index,
+)
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.decision import ProposalError, control_path_delays
 from agents.wncsca.guarantee import path_laws
@@ -196,3 +202,10 @@ def test_the_quantile_estimate_is_the_distributions_quantile_for_the_paper_metho
     with pytest.raises(ValidationError, match="estimate: quantile"):
         WncscaConfig(method="chance", estimate="quantile")
     WncscaConfig(method="paper", estimate="quantile")
+
+
+def test_the_common_random_numbers_of_a_sample_do_not_depend_on_the_period():
+    short, long_ = _Uniforms(np.random.default_rng(3), 5), _Uniforms(np.random.default_rng(3), 5)
+    first = short.take(10).copy()
+    assert np.array_equal(long_.take(200)[:, :10], first)
+    assert np.array_equal(short.take(130)[:, :10], first)
