@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 PIP_TOOLS := pip-tools==7.6.2
 LOCK_VENV := .venv-lock
 
-.PHONY: demo test test-fast lint lock bench clean
+.PHONY: demo test test-fast lint docs lock bench clean
 
 $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy --strict bus_schemas core kernel
 
+# The documentation site into site/ (docs/hooks.py generates the reference pages from the code);
+# --strict: a broken link or anchor, or a page left out of the nav, fails the build.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir site
+
 # Re-resolve every dependency to the newest versions pyproject.toml allows and pin them with
 # hashes. Run it after editing dependencies, or on purpose to take upgrades (then `make test`).
 lock:
@@ -48,4 +53,4 @@ bench: $(STAMP)
 	$(BIN)/python bench/wncsca_latency.py
 
 clean:
-	rm -rf $(VENV) $(LOCK_VENV) runs
+	rm -rf $(VENV) $(LOCK_VENV) runs site
