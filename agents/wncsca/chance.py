@@ -476,6 +476,7 @@ class ChanceModel:
     laws: Mapping[str, LoopLaw]
     seed: int = 0
     offsets: dict[str, float] = field(default_factory=dict)
+    period_caps: dict[str, float] = field(default_factory=dict)
     _memo: dict[tuple[Any, ...], NDArray[np.float64]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -517,12 +518,16 @@ class ChanceModel:
         return raw + np.array([self.offsets[n] for n in self.loops])
 
     def evaluate(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> Evaluation:
-        """Risk overshoot of every loop: the ``(R - k_max)``-th smallest realization."""
+        """Risk overshoot of every loop: the ``(R - k_max)``-th smallest realization (``inf``
+        for a loop whose period exceeds its cap in :attr:`period_caps`: the jitter margin)."""
         per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
         dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
         os = np.sort(self.samples(per, dly), axis=0)
-        risk = os[self.linear.R - 1 - self.k_max]
-        return Evaluation(per, dly, {n: float(risk[i]) for i, n in enumerate(self.loops)}, ())
+        risk = {n: float(os[self.linear.R - 1 - self.k_max, i]) for i, n in enumerate(self.loops)}
+        for n, cap in self.period_caps.items():
+            if per[n] > cap:
+                risk[n] = math.inf  # outside the jitter margin: no guarantee of stability
+        return Evaluation(per, dly, risk, ())
 
     def probability(
         self, periods: Mapping[str, float], delays: Mapping[str, float]

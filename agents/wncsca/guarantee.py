@@ -29,7 +29,7 @@ from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import largest_delay
 from agents.wncsca.chance import ChanceModel, LoopLaw
 from agents.wncsca.decision import Decision, ProposalError
-from agents.wncsca.jitter import loop_margins
+from agents.wncsca.jitter import delay_variation, loop_margins
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from bus_schemas import DelayDistribution
@@ -116,6 +116,24 @@ def risk_bounds(
     }
 
 
+def period_caps(
+    margins: Mapping[str, Mapping[str, Any]],
+    laws: Mapping[str, LoopLaw],
+    delays: Mapping[str, float],
+) -> dict[str, float]:
+    """Each loop's longest period whose delay variation stays within its jitter margin:
+    ``(margin - spread) / (1 + bursts)`` (:func:`agents.wncsca.jitter.delay_variation` is
+    ``spread + (1 + bursts) h``); 0 when the spread alone exceeds the margin."""
+    out = {}
+    for n, m in margins.items():
+        law = laws.get(n, LoopLaw())
+        _, spread = delay_variation(law, float(delays.get(n, 0.0)), 0.0)
+        _, one = delay_variation(law, float(delays.get(n, 0.0)), 1.0)
+        per_period = one - spread
+        out[n] = max(0.0, (m["margin"] - spread) / per_period) * (1 - 1e-9)
+    return out
+
+
 def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignment:
     """The paper's search on the risk, checked on the non-linear model and repeated on the
     corrected prediction (module docstring); the assignment's ``extra`` holds the guarantee."""
@@ -192,8 +210,17 @@ def judge_by_risk(
     ``wncs analyze`` asks for it, the live agent does not: it about doubles the decision time,
     and the periods were chosen so that the bound sits near the delay now)."""
     model = ChanceModel(base, laws, seed=seed)
+    # the jitter margin does not depend on the period (continuous-time laws), the variation
+    # does (one period of sample and hold, one per loss burst): a period cap for the search
+    margins = loop_margins(base, model.benchmark, known, laws)
+    model.period_caps = period_caps(margins, laws, known)
     model.check(model.benchmark, known)  # the linearisation corrected at the start point
     result = chance_periods(model, known)
+    for n, m in margins.items():
+        nominal, variation = delay_variation(
+            laws.get(n, LoopLaw()), float(known.get(n, 0.0)), result.periods[n]
+        )
+        m.update(nominal_delay=nominal, variation=variation, ok=variation < m["margin"])
     guarantee = result.extra["guarantee"]
     limit, conf = base.config.overshoot_limit, base.config.confidence
     lines = []
@@ -210,7 +237,6 @@ def judge_by_risk(
             f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
             f"{result.periods[n]:g} ({what})"
         )
-    margins = loop_margins(base, result.periods, known, laws)
     result.extra["jitter_margin"] = margins
     unstable = [n for n in base.loops if n in margins and not margins[n]["ok"]]
     lines += [
