@@ -9,7 +9,7 @@
 ``wncs validate SCENARIO ...``         check scenario files without running them
 ``wncs schema [--out FILE]``           the scenario files' JSON Schema, for editors
 ``wncs sweep SCENARIO --grid P=a:b:n --out DIR``  a grid of overrides on the direct engine
-``wncs export RUN_DIR --csv``          every artefact of a run as CSV files
+``wncs export RUN_DIR --csv``          every artefact of a run as CSV files (no Parquet)
 
 ``run``, ``node``, ``validate`` and ``sweep`` take ``--set dotted.path=VALUE`` (repeatable,
 :mod:`runtime.overrides`): the value, parsed as YAML, replaces the field in the file's mapping
@@ -37,12 +37,12 @@ from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
 from kernel.bus import init_zenoh_log, open_client
 from runtime.analysis import analyze, parse_delays
-from runtime.artefacts import RUN_FILE, SCENARIO_FILE
-from runtime.history import load_record
+from runtime.artefacts import RUN_FILE
+from runtime.export import export_csv
 from runtime.inject import build_request, send
 from runtime.launcher import launch
 from runtime.nodes import bus_node, check_node, clock_runner
-from runtime.report import load_saved_record, write_plots, write_summary
+from runtime.report import load_run, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
 from runtime.sweep import SWEEP_CSV, SWEEP_PNG, parse_axis, sweep
 
@@ -98,6 +98,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "schema": (
         "wncs schema --out scenario.schema.json",
         "wncs schema > scenario.schema.json",
+    ),
+    "export": (
+        "wncs export runs/bench --csv",
+        "wncs export runs/wncs --csv --out runs/wncs_csv",
     ),
     "sweep": (
         "wncs sweep scenarios/jcstr_benchmark.yaml --grid loops.level.tau_s=0.1:0.4:7"
@@ -350,6 +354,29 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="worker processes (default: the number of CPUs; 1 runs in this process)",
     )
+    export = _command(
+        sub,
+        "export",
+        "write every artefact of a run as CSV files",
+        "Write every artefact of a run as CSV files: per loop its trace (loop_LOOP.csv: t, "
+        "t_sampled, y, setpoint, u), per plant its states (plant_PLANT.csv), the network's "
+        "path statistics (network_paths.csv) and, with a WSN, its nodes' energy "
+        "(network_nodes.csv), and with a coordination agent its decisions and assignments "
+        "(wncsca_decisions.csv, wncsca_assignments.csv). Times in the scenario's time units; "
+        "an empty cell is a missing value. Parquet is not available: neither pyarrow nor "
+        "pandas is installed with wncs (--parquet is refused, exit 2).",
+    )
+    export.add_argument("dir", metavar="RUN_DIR", help="run directory written by wncs run")
+    fmt = export.add_mutually_exclusive_group(required=True)
+    fmt.add_argument("--csv", action="store_true", help="write CSV files")
+    fmt.add_argument(
+        "--parquet",
+        action="store_true",
+        help="not available (needs pyarrow or pandas, which wncs does not install)",
+    )
+    export.add_argument(
+        "--out", default=None, metavar="DIR", help="output directory (default RUN_DIR/csv)"
+    )
     return parser
 
 
@@ -422,15 +449,7 @@ def _cmd_node(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.dir)
-    try:
-        info = json.loads((out / RUN_FILE).read_text())
-    except (OSError, ValueError) as err:
-        raise ConfigError(f"{out / RUN_FILE}: not a run directory ({err})") from err
-    scenario = load_scenario(out / SCENARIO_FILE)
-    if (out / "history.sqlite").exists():
-        rec = load_record(out / "history.sqlite", scenario, engine=info["engine"])
-    else:
-        rec = load_saved_record(out)
+    scenario, rec = load_run(out)
     old = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
     rec.wall_s = old.get("wall_s", 0.0)
     rec.phases = old.get("phases_s", {})
@@ -523,6 +542,17 @@ def _cmd_schema(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    if args.parquet:
+        raise ConfigError(
+            "--parquet: not available, neither pyarrow nor pandas is installed with wncs; use --csv"
+        )
+    written = export_csv(args.dir, args.out)
+    where = written[0].parent if written else Path(args.out or Path(args.dir) / "csv")
+    print(f"wrote {len(written)} CSV files to {where}: " + ", ".join(p.name for p in written))
+    return 0
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     axes = [parse_axis(text) for text in args.grid]
     rows = sweep(
@@ -551,6 +581,7 @@ def main(argv: list[str] | None = None) -> int:
             "validate": _cmd_validate,
             "schema": _cmd_schema,
             "sweep": _cmd_sweep,
+            "export": _cmd_export,
         }
         return commands[args.command](args)
     except ConfigError as err:

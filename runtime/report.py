@@ -8,10 +8,13 @@ from typing import Any
 
 from agents.wncsca.plots import run_plots
 from controllers.law_plots import figures_of
+from core.errors import ConfigError
 from core.record import LoopRecord, PlantRecord, RunRecord, summarize, wncsca_summary
 from core.time import to_units
+from runtime.artefacts import HISTORY_FILE, RUN_FILE, SCENARIO_FILE
 from runtime.executions import multi_loop_executions
-from runtime.scenario import ControllerNodeConfig, Scenario
+from runtime.history import load_record
+from runtime.scenario import ControllerNodeConfig, Scenario, load_scenario
 
 __all__ = [
     "SUMMARY_FILE",
@@ -21,6 +24,7 @@ __all__ = [
     "law_figures",
     "save_record",
     "load_saved_record",
+    "load_run",
 ]
 
 SUMMARY_FILE = "summary.json"
@@ -75,6 +79,25 @@ def load_saved_record(out: Path) -> RunRecord:
     for n, p in data["plants"].items():
         rec.plants[n] = PlantRecord(tuple(p["state_names"]), p["t"], p["x"])
     return rec
+
+
+def load_run(out: Path) -> tuple[Scenario, RunRecord]:
+    """A run directory's scenario as run and its record: from ``history.sqlite`` (bus engines)
+    or ``record.json`` (direct engine).
+
+    Raises
+    ------
+    ConfigError
+        If ``out`` has no ``run.json`` (it is not a run directory) or its scenario does not load.
+    """
+    try:
+        info = json.loads((out / RUN_FILE).read_text())
+    except (OSError, ValueError) as err:
+        raise ConfigError(f"{out / RUN_FILE}: not a run directory ({err})") from err
+    scenario = load_scenario(out / SCENARIO_FILE)
+    if (out / HISTORY_FILE).exists():
+        return scenario, load_record(out / HISTORY_FILE, scenario, engine=info["engine"])
+    return scenario, load_saved_record(out)
 
 
 def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) -> list[Path]:
