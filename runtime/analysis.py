@@ -6,6 +6,11 @@ Delays come from ``--delays loop=value,...`` or, by default, from the scenario i
 their ``tau_d + tau_a``, loops over a gateway the estimate the agent is configured to use from the
 gateway's initial configuration, with its delay distributions (the chance method judges by
 them; every method's assignment gets each loop's jitter margin, :mod:`agents.wncsca.jitter`).
+The decision's ``subject`` says what was judged ("the scenario's initial configuration" or "the
+given delays": there is no gateway proposal to number), and with a WSN ``energy`` holds the
+projected network lifetime of the assignment against the benchmark periods over the network's
+initial routes, as the agent computes it after a negotiation
+(:meth:`agents.wncsca.coordinator.Coordinator.energy`).
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from typing import Any
 
 from agents.wncsca.bounds import delay_bounds
 from agents.wncsca.config import WncscaConfig
-from agents.wncsca.coordinator import assign
+from agents.wncsca.coordinator import Coordinator, assign
 from agents.wncsca.decision import control_path_delays, decide
 from agents.wncsca.guarantee import judge_by_risk, path_laws
 from agents.wncsca.jitter import loop_margins
@@ -55,19 +60,42 @@ def parse_delays(text: str, loops: Any) -> dict[str, float]:
     return out
 
 
+def _network_paths(scenario: Any, name: str) -> dict[str, dict[str, Any]]:
+    """The paths as network ``name`` would first propose them."""
+    if scenario.is_wireless(name):
+        return dict(PathCarrier(carrier_spec(scenario, name)).configuration(0))
+    paths: dict[str, dict[str, Any]] = {}
+    for loop, lp in scenario.loops.items():
+        if lp.network == name:
+            d = lp.tau_d + lp.tau_a
+            est = {"timestamps": d, "ping": d, "hops": d}
+            paths[f"{loop}.sensor"] = {"hops": 0, "route": [], "estimates": est}
+    return paths
+
+
 def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
     """The paths as the scenario's networks would first propose them."""
     paths: dict[str, dict[str, Any]] = {}
     for name in scenario.carriers():
-        if scenario.is_wireless(name):
-            paths.update(PathCarrier(carrier_spec(scenario, name)).configuration(0))
-        else:
-            for loop, lp in scenario.loops.items():
-                if lp.network == name:
-                    d = lp.tau_d + lp.tau_a
-                    est = {"timestamps": d, "ping": d, "hops": d}
-                    paths[f"{loop}.sensor"] = {"hops": 0, "route": [], "estimates": est}
+        paths.update(_network_paths(scenario, name))
     return paths
+
+
+def _energy(
+    scenario: Any, model: Any, config: WncscaConfig, periods: Mapping[str, float]
+) -> list[dict[str, Any]]:
+    """Per WSN carrying loops, the projected network lifetime under ``periods`` against the
+    benchmark periods over the network's initial routes (:meth:`Coordinator.energy`, as the
+    agent computes it after a negotiation); the entries of ``summary.json``'s ``wncsca.energy``."""
+    core = Coordinator(scenario, model, config)
+    core.control_periods = dict(periods)
+    out = []
+    for name in scenario.carriers():
+        if scenario.is_wireless(name) and core.carried.get(name):
+            energy = core.energy(name, _network_paths(scenario, name))
+            if energy is not None:
+                out.append({"t": 0.0, "network": name, **energy})
+    return out
 
 
 def analyze(
@@ -121,8 +149,16 @@ def analyze(
             )
     else:
         decision = decide(None, paths, bounds, config.estimate, quantile=config.confidence)
-    entry = {"t": 0.0, "subject": "proposal", **decision.as_dict()}
+    entry = {
+        "t": 0.0,
+        **decision.as_dict(),
+        # what was judged (the timeline prints the subject): there is no gateway proposal here
+        "subject": "the given delays"
+        if delays is not None
+        else "the scenario's initial configuration",
+    }
     assignments = []
+    energy: list[dict[str, Any]] = []
     margins = None
     if decision.verdict == "accept":
         result = risk or assign(model, decision.delays, _hops(paths))
@@ -142,6 +178,7 @@ def analyze(
                 "search": search,
             }
         )
+        energy = _energy(scenario, model, config, result.periods)
         if out is not None:
             fig10(result, Path(out) / "search.png", limit=config.overshoot_limit)
     entry["decision_time_s"] = time.perf_counter() - t1
@@ -156,6 +193,7 @@ def analyze(
             "bounds_time_s": t_bounds,
             "decisions": [entry],
             "assignments": assignments,
+            "energy": energy,
             "jitter_margin": margins,
             "simulations": model.simulations,
         },
