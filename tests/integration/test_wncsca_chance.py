@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import pytest
 
+from agents.wncsca.guarantee import path_laws
+from gateway.carrier import PathCarrier
 from runtime.analysis import analyze
+from runtime.direct import coordinator
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
+from runtime.specs import carrier_spec
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_engines_agree import _without_wall_clock
 
@@ -108,3 +112,27 @@ def test_wncs_analyze_judges_by_risk_with_bounds_and_margins():
         assert bound >= decision["delays"][loop] - 0.005, loop
     assert set(w["jitter_margin"]) == {"level", "temperature"}
     assert all(m["ok"] for m in w["jitter_margin"].values())
+
+
+def test_a_step_too_fast_for_the_control_periods_tightens_them_for_its_transient():
+    """Temperature 52 -> 56 with the temperature sampled every 0.2 pu overshoots about a third
+    of the time over the jitter scenario's delays; at its benchmark period 0.1 pu it holds: the
+    step is applied with the tightened period, relaxed after the test's length (8 pu)."""
+    scenario = load_scenario(JITTER)
+    co = coordinator(scenario)
+    paths = PathCarrier(carrier_spec(scenario, "network")).configuration(0)
+    co.laws = path_laws(paths, ("level", "temperature"))
+    co.delays = {"level": 0.17, "temperature": 0.10}
+    slow = {"level": 0.175, "temperature": 0.2}
+    co.control_periods = dict(slow)
+    co.setpoints = {"level": 0.75, "temperature": 52.0}
+    decision, value, when = co.on_setpoint("temperature", {"value": 56.0}, 1_000_000)
+    assert decision.verdict == "accept" and value == 56.0 and when == 1_000_000
+    assert "periods tightened to level 0.175, temperature 0.1" in decision.reasons[-1]
+    assert co.control_periods == {"level": 0.175, "temperature": 0.1}
+    assert co.rates()["periods"] == {"level": 0.175, "temperature": 0.1}
+    assert co.relax_at == 1_000_000 + 8_000_000
+    relaxed = co.relax()
+    assert relaxed is not None and "relaxed" in relaxed.reasons[0]
+    assert co.control_periods == slow and co.relax_at is None
+    assert co.relax() is None  # nothing left to relax
