@@ -14,8 +14,9 @@ network. Two sources, one form (:class:`bus_schemas.DelayDistribution`):
 * :func:`measured`: the delivered packets' delays from their time stamps, and the share lost.
 
 The quantile function is kept at :data:`PROBABILITIES` (dense in the upper tail, where the
-guarantee is decided) and read back piecewise linearly (:func:`quantile`, :func:`sample`: the
-inverse-CDF method), with a compact histogram of :data:`BINS` bins for display.
+guarantee is decided) and read back piecewise linearly (:func:`quantile`, :func:`mean`; the
+agent draws from it by the inverse-CDF method), with a compact histogram of :data:`BINS` bins
+for display.
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ __all__ = [
     "from_delays",
     "quantile",
     "mean",
-    "sample",
 ]
 
 PROBABILITIES: tuple[float, ...] = (
@@ -114,24 +114,23 @@ def measured(carried: Sequence[tuple[int, int | None]]) -> DelayDistribution | N
     return from_delays(delays, len(carried), 1.0 - len(delays) / len(carried), "measured")
 
 
-def _table(dist: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+Table = DelayDistribution | tuple[Sequence[float], Sequence[float]]
+"""A distribution, or its quantile table ``(probabilities, delays)``."""
+
+
+def _table(dist: Table) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     if isinstance(dist, DelayDistribution):
         return np.asarray(dist.probabilities, dtype=float), np.asarray(dist.delays, dtype=float)
     return np.asarray(dist[0], dtype=float), np.asarray(dist[1], dtype=float)
 
 
-def quantile(dist: DelayDistribution, p: float | NDArray[np.float64]) -> Any:
+def quantile(dist: Table, p: float | NDArray[np.float64]) -> Any:
     """The delay at probability ``p`` of a delivered packet (piecewise linear), time units."""
     probs, delays = _table(dist)
     return np.interp(p, probs, delays)
 
 
-def mean(dist: DelayDistribution) -> float:
+def mean(dist: Table) -> float:
     """Mean delay of a delivered packet under the piecewise-linear quantile function."""
     probs, delays = _table(dist)
     return float(np.sum(np.diff(probs) * (delays[1:] + delays[:-1]) / 2.0))
-
-
-def sample(dist: DelayDistribution, rng: np.random.Generator, size: Any) -> NDArray[np.float64]:
-    """Delays of delivered packets drawn from ``dist`` (inverse-CDF method), time units."""
-    return np.asarray(quantile(dist, rng.random(size)), dtype=float)

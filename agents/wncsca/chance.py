@@ -60,9 +60,10 @@ import numpy as np
 import scipy.stats
 from numpy.typing import NDArray
 
-from agents.wncsca.fast import LinearPredictor, _phi1
+from agents.wncsca.fast import LinearPredictor, phi1
 from agents.wncsca.model import Evaluation, LoopModel
 from core.time import TICKS_PER_UNIT, to_ticks, to_units
+from gateway import distribution
 
 __all__ = [
     "PHASES",
@@ -94,12 +95,22 @@ class LoopLaw:
 
     @property
     def mean(self) -> float:
-        p, d = np.asarray(self.probabilities), np.asarray(self.delays)
-        return float(np.sum(np.diff(p) * (d[1:] + d[:-1]) / 2.0))
+        return distribution.mean((self.probabilities, self.delays))
 
-    def deviations(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Draws minus the mean, by the inverse CDF at the uniforms ``u``."""
-        return np.interp(u, self.probabilities, self.delays) - self.mean
+    def draw(
+        self, mean: float, u_delay: NDArray[np.float64], u_loss: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Delays (the shape located at ``mean``, at least 0) and loss flags of samples, by
+        the inverse CDF at the uniforms ``u_delay`` and ``u_loss < loss``."""
+        d = np.interp(u_delay, self.probabilities, self.delays) - self.mean
+        return np.maximum(0.0, mean + d), u_loss < self.loss
+
+    def trace(
+        self, mean: float, u_delay: NDArray[np.float64], u_loss: NDArray[np.float64]
+    ) -> list[float | None]:
+        """:meth:`draw` as a wired network's ``traces:`` entry (``None``: lost)."""
+        d, lost = self.draw(mean, u_delay, u_loss)
+        return [None if x else float(v) for v, x in zip(d, lost, strict=True)]
 
 
 def risk_index(realizations: int, confidence: float) -> int:
@@ -268,10 +279,10 @@ class LinearMonteCarlo:
             n_samples[n] = len(ks)
             t_s = np.broadcast_to(ks * h[n], (R, len(ks)))
             add(t_s, _SAMPLE, i, ks)
-            law = self.laws[n]
-            d = np.maximum(0.0, mu[n] + law.deviations(self._u_delay[i].take(len(ks))))
+            d, lost = self.laws[n].draw(
+                mu[n], self._u_delay[i].take(len(ks)), self._u_loss[i].take(len(ks))
+            )
             d = np.rint(d * TICKS_PER_UNIT) / TICKS_PER_UNIT
-            lost = self._u_loss[i].take(len(ks)) < law.loss
             t_d = np.where(lost, np.inf, t_s + d)
             add(t_d, _DELIVER, i, ks)
         step_t = np.zeros((len(self.steps), R))
@@ -349,7 +360,7 @@ class LinearMonteCarlo:
             if (tau > 0).any():
                 lt = self.lam[stage] * tau
                 ez = np.exp(lt)
-                z = ez * z + tau * _phi1(lt, ez) * w
+                z = ez * z + tau * phi1(lt, ez) * w
             t_prev = t
             y = None
             mon = kind == _MONITOR
@@ -446,12 +457,11 @@ class LinearMonteCarlo:
         for i, n in enumerate(self.loops):
             h = to_units(to_ticks(periods[n]))
             count = int(math.floor(self.end / h + 1e-9)) + 1
-            law = self.laws[n]
-            d = np.maximum(
-                0.0, float(delays.get(n, 0.0)) + law.deviations(self._u_delay[i].take(count)[r])
+            out[n] = self.laws[n].trace(
+                float(delays.get(n, 0.0)),
+                self._u_delay[i].take(count)[r],
+                self._u_loss[i].take(count)[r],
             )
-            lost = self._u_loss[i].take(count)[r] < law.loss
-            out[n] = [None if x else float(v) for v, x in zip(d, lost, strict=True)]
         phases = {
             (tick, loop): int(self.phase_j[s, r]) for s, (tick, loop, _) in enumerate(self.steps)
         }
@@ -487,7 +497,6 @@ class ChanceModel:
         self.linear = LinearMonteCarlo(self.base, self.laws, cfg.realizations, self.seed)
         self.k_max = risk_index(cfg.realizations, cfg.confidence)
         self.offsets = {n: self.offsets.get(n, 0.0) for n in self.loops}
-        self.checks_run = 0
         laws = {
             n: [list(law.probabilities), list(law.delays), law.loss]
             for n, law in sorted(self.laws.items())
@@ -569,7 +578,6 @@ class ChanceModel:
             rec = self.base.trials.run_replay(per, dly, traces, phases, PHASES)
             nonlinear[r] = self.base.overshoots_of(rec)
             self.base.simulations += 1
-        self.checks_run += len(replays)
         for i, n in enumerate(self.loops):
             nl = np.array([nonlinear[int(r)][i] for r in chosen[n]])
             li = linear[chosen[n], i]

@@ -47,7 +47,7 @@ from agents.wncsca.guarantee import judge_by_risk, path_laws
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
-from agents.wncsca.steps import judge_step
+from agents.wncsca.steps import judge_step, test_length
 from core.time import to_ticks
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
@@ -364,7 +364,7 @@ class Coordinator:
                 if self._relaxed is None:
                     self._relaxed = dict(self.control_periods)
                 self.control_periods = dict(step.periods)
-                self.relax_at = when + to_ticks(float(self.model.trials.scenario.end_time))
+                self.relax_at = when + to_ticks(test_length(self.model))
         previous, self.mode = self.mode, "setpoint_change"
         note = f"{loop} -> {value:g} at t={when / 1e6:g}"
         if previous != "setpoint_change":

@@ -23,7 +23,14 @@ from agents.wncsca.bounds import DelayBound
 from agents.wncsca.config import ESTIMATES
 from bus_schemas import DelayDistribution
 
-__all__ = ["Decision", "ProposalError", "control_path_delays", "decide", "path_delay"]
+__all__ = [
+    "Decision",
+    "ProposalError",
+    "control_path_delays",
+    "decide",
+    "path_delay",
+    "read_distribution",
+]
 
 _DIRECTIONS = ("sensor", "actuator")
 
@@ -54,6 +61,22 @@ class Decision:
             "estimates_used": dict(self.estimates_used),
             "offending": list(self.offending),
         }
+
+
+def read_distribution(path: str, raw: Any) -> DelayDistribution:
+    """A path entry's ``distribution``, validated.
+
+    Raises
+    ------
+    ProposalError
+        Naming the path and the field (``paths.<path>.distribution.<field>: ...``).
+    """
+    try:
+        return DelayDistribution.model_validate(raw)
+    except ValidationError as err:
+        first = err.errors()[0]
+        where = "".join(f".{p}" for p in first["loc"])
+        raise ProposalError(f"paths.{path}.distribution{where}: {first['msg']}") from None
 
 
 def path_delay(
@@ -93,12 +116,7 @@ def path_delay(
     if hops < 0:
         return None, None
     if preferred == "quantile" and entry.get("distribution") is not None:
-        try:
-            dist = DelayDistribution.model_validate(entry["distribution"])
-        except ValidationError as err:
-            first = err.errors()[0]
-            where = ".".join(str(p) for p in first["loc"])
-            raise ProposalError(f"paths.{path}.distribution.{where}: {first['msg']}") from None
+        dist = read_distribution(path, entry["distribution"])
         return float(np.interp(quantile, dist.probabilities, dist.delays)), "quantile"
     order = [preferred, *(e for e in ESTIMATES if e != preferred)]
     for name in order:

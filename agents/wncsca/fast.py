@@ -254,7 +254,7 @@ class _Modal:
             self.ViGw = self.Vi @ Gw
 
 
-def _phi1(z: NDArray[np.complex128], ez: NDArray[np.complex128] | None = None) -> Any:
+def phi1(z: NDArray[np.complex128], ez: NDArray[np.complex128] | None = None) -> Any:
     """``(exp(z) - 1) / z`` (1 at 0); ``ez = exp(z)`` when already known."""
     if ez is None:
         ez = np.exp(z)
@@ -322,7 +322,7 @@ class _Models:
         tt = t[:, None]
         ez = np.exp(lam * tt)
         phi = np.real((V * ez[:, None, :]) @ self.Vi[mid])
-        c = tt * _phi1(lam * tt, ez)
+        c = tt * phi1(lam * tt, ez)
         g = np.real(np.einsum("inm,im->in", V, c * self.ViG[mid]))
         gw = np.real(V @ (c[:, :, None] * self.ViGw[mid]))
         return phi, g, gw
@@ -362,7 +362,7 @@ class _Models:
         tt = t[:, :, None]
         ez = np.exp(lam * tt)
         R = np.real((cyv * ez) @ self.Vi[mid])
-        c = cyv * tt * _phi1(lam * tt, ez)
+        c = cyv * tt * phi1(lam * tt, ez)
         rg = np.real(np.sum(c * self.ViG[mid][:, None, :], axis=2))
         Rw = np.real(c @ self.ViGw[mid])
         return R, rg, Rw

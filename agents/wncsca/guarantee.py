@@ -23,16 +23,14 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import largest_delay
 from agents.wncsca.chance import ChanceModel, LoopLaw
-from agents.wncsca.decision import Decision, ProposalError
+from agents.wncsca.decision import Decision, ProposalError, read_distribution
 from agents.wncsca.jitter import delay_variation, loop_margins
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
-from bus_schemas import DelayDistribution
 
 __all__ = [
     "ROUNDS",
@@ -69,17 +67,8 @@ def path_laws(paths: Any, loops: tuple[str, ...]) -> dict[str, LoopLaw]:
         for direction in ("sensor", "actuator"):
             entry = paths.get(f"{loop}.{direction}")
             raw = entry.get("distribution") if isinstance(entry, Mapping) else None
-            if raw is None:
-                continue
-            try:
-                dists.append(DelayDistribution.model_validate(raw))
-            except ValidationError as err:
-                first = err.errors()[0]
-                where = ".".join(str(p) for p in first["loc"])
-                where = f".{where}" if where else ""
-                raise ProposalError(
-                    f"paths.{loop}.{direction}.distribution{where}: {first['msg']}"
-                ) from None
+            if raw is not None:
+                dists.append(read_distribution(f"{loop}.{direction}", raw))
         if not dists:
             out[loop] = LoopLaw()
         elif len(dists) == 1:

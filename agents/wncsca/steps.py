@@ -39,7 +39,7 @@ from agents.wncsca.model import LoopModel
 from core.record import loop_metrics
 from core.time import to_ticks, to_units
 
-__all__ = ["StepVerdict", "judge_step"]
+__all__ = ["StepVerdict", "judge_step", "test_length"]
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ def judge_step(
     limit, confidence = cfg.overshoot_limit, cfg.confidence
     n = max(2, cfg.checks)
     k_max = risk_index(n, confidence)
-    settle = _test_length(model)
+    settle = test_length(model)
     bench = dict(model.benchmark)
     candidates = [dict(control), {**control, loop: min(control[loop], bench[loop])}, bench]
     unique: list[dict[str, float]] = []
@@ -139,7 +139,7 @@ def judge_step(
     )
 
 
-def _test_length(model: LoopModel) -> float:
+def test_length(model: LoopModel) -> float:
     """The agent's test horizon (time units): how long a trial settles and judges a step."""
     return float(model.trials.scenario.end_time)
 
@@ -157,11 +157,10 @@ def _traces(
     for name, law in laws.items():
         count = int(end / periods[name]) + 2
         lo = (r * count) % max(1, len(u_delay[name]) - count)
-        d = np.maximum(
-            0.0, float(delays.get(name, 0.0)) + law.deviations(u_delay[name][lo : lo + count])
+        window = slice(lo, lo + count)
+        out[name] = law.trace(
+            float(delays.get(name, 0.0)), u_delay[name][window], u_loss[name][window]
         )
-        lost = u_loss[name][lo : lo + count] < law.loss
-        out[name] = [None if x else float(v) for v, x in zip(d, lost, strict=True)]
     return out
 
 

@@ -165,10 +165,7 @@ class ScenarioTrials:
         ]
         update: dict[str, Any] = {"setpoints": setpoints, "end_time": float(end_time)}
         if traces is not None:
-            net = type(trial.nodes[_NET]).model_validate(
-                {"kind": "network", "traces": dict(traces)}
-            )
-            update["nodes"] = {**trial.nodes, _NET: net}
+            update["nodes"] = _with_traces(trial, traces)
         return self._simulate(trial.model_copy(update=update))
 
     def run_replay(
@@ -194,9 +191,14 @@ class ScenarioTrials:
                     update={"t": to_units((t // p) * p + (j * p) // denominator)}
                 )
             steps.append(step)
-        net = type(trial.nodes[_NET]).model_validate({"kind": "network", "traces": dict(traces)})
-        nodes = {**trial.nodes, _NET: net}
+        nodes = _with_traces(trial, traces)
         return self._simulate(trial.model_copy(update={"setpoints": steps, "nodes": nodes}))
+
+
+def _with_traces(trial: Scenario, traces: Mapping[str, list[float | None]]) -> dict[str, Any]:
+    """The trial's nodes with its wired network replaying ``traces`` (validated: delays >= 0)."""
+    net = type(trial.nodes[_NET]).model_validate({"kind": "network", "traces": dict(traces)})
+    return {**trial.nodes, _NET: net}
 
 
 def agent_config(scenario: Scenario) -> WncscaConfig:
