@@ -38,13 +38,11 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
-def _pyplot() -> Any:
-    import matplotlib
+def _figure(figsize: tuple[float, float]) -> Any:
+    """A figure of its own (no pyplot: a notebook's backend and current figure are left alone)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(figsize=figsize)
 
 
 def series(
@@ -91,8 +89,9 @@ def series(
     return out
 
 
-def _panels(plt: Any, n: int) -> tuple[Any, list[Any]]:
-    fig, axes = plt.subplots(n, 1, figsize=(6.4, 1.2 + 2.0 * n), sharex=True, squeeze=False)
+def _panels(n: int) -> tuple[Any, list[Any]]:
+    fig = _figure((6.4, 1.2 + 2.0 * n))
+    axes = fig.subplots(n, 1, sharex=True, squeeze=False)
     return fig, list(axes[:, 0])
 
 
@@ -141,9 +140,8 @@ def states_figure(
     matplotlib.figure.Figure
         Panel ``i`` holds the line ``x_m,i`` then the dots ``x_i``.
     """
-    plt = _pyplot()
     x, x_m = np.asarray(x, dtype=float), np.asarray(x_m, dtype=float)
-    fig, axes = _panels(plt, x.shape[1])
+    fig, axes = _panels(x.shape[1])
     for i, ax in enumerate(axes):
         ax.plot(t, x_m[:, i], "-", label=f"x_m{i + 1}")
         ax.plot(t, x[:, i], ".", ms=3, label=f"x{i + 1}")
@@ -166,9 +164,8 @@ def outputs_figure(
     ``y_label`` names output ``i`` (``"y{i} - y_bar{i}"`` for deviations); otherwise as
     :func:`states_figure`.
     """
-    plt = _pyplot()
     y, y_m = np.asarray(y, dtype=float), np.asarray(y_m, dtype=float)
-    fig, axes = _panels(plt, y.shape[1])
+    fig, axes = _panels(y.shape[1])
     for i, ax in enumerate(axes):
         label = y_label.format(i=i + 1)
         ax.plot(t, y_m[:, i], "-", label=f"y_m{i + 1}")
@@ -186,9 +183,8 @@ def errors_figure(
     title: str | None = None,
 ) -> Any:
     """Fig. 6.5: each state error ``e_i = x_i - x_m,i``; otherwise as :func:`states_figure`."""
-    plt = _pyplot()
     e = np.asarray(e, dtype=float)
-    fig, axes = _panels(plt, e.shape[1])
+    fig, axes = _panels(e.shape[1])
     for i, ax in enumerate(axes):
         ax.plot(t, e[:, i], "-o", ms=2)
         ax.axhline(0.0, color="k", lw=0.6)
@@ -222,9 +218,9 @@ def theta_figure(
     matplotlib.figure.Figure
         One panel; line ``j`` is ``theta_(j+1) - theta0_(j+1)``.
     """
-    plt = _pyplot()
     drift = np.asarray(drift, dtype=float)
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig = _figure((6.4, 4.0))
+    ax = fig.subplots()
     n2 = drift.shape[1] // 2
     n = round(n2**0.5)
     for j in range(drift.shape[1]):

@@ -9,7 +9,7 @@
 ``wncs validate SCENARIO ...``         check scenario files without running them
 ``wncs schema [--out FILE]``           the scenario files' JSON Schema, for editors
 ``wncs sweep SCENARIO --grid P=a:b:n --out DIR``  a grid of overrides on the direct engine
-``wncs export RUN_DIR --csv``          every artefact of a run as CSV files (no Parquet)
+``wncs export RUN_DIR --csv|--parquet``  every artefact of a run as CSV or Parquet files
 
 ``run``, ``node``, ``validate`` and ``sweep`` take ``--set dotted.path=VALUE`` (repeatable,
 :mod:`runtime.overrides`): the value, parsed as YAML, replaces the field in the file's mapping
@@ -38,13 +38,13 @@ from core.errors import ConfigError, SchemaError, WncsError
 from kernel.bus import init_zenoh_log, open_client
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
-from runtime.export import export_csv
+from runtime.export import export_run
 from runtime.inject import build_request, send
 from runtime.launcher import launch
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.report import load_run, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
-from runtime.sweep import SWEEP_CSV, SWEEP_PNG, parse_axis, sweep
+from runtime.sweep import SWEEP_CSV, SWEEP_PARQUET, SWEEP_PNG, parse_axis, sweep
 
 __all__ = ["main", "build_parser", "EXAMPLES"]
 
@@ -102,6 +102,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "export": (
         "wncs export runs/bench --csv",
         "wncs export runs/wncs --csv --out runs/wncs_csv",
+        "wncs export runs/bench --parquet",
     ),
     "sweep": (
         "wncs sweep scenarios/jcstr_benchmark.yaml --grid loops.level.tau_s=0.1:0.4:7"
@@ -330,7 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
         "Run a scenario on the direct engine at every point of a grid of overrides, in parallel "
         "processes, and write DIR/sweep.csv (one row per point: the grid values, then each "
         "loop's overshoot_pct, settling_time and iae and, with a coordination agent, its "
-        "control period from the last assignment) and DIR/sweep.png (each loop's overshoot "
+        "control period from the last assignment), the same table as DIR/sweep.parquet, and "
+        "DIR/sweep.png (each loop's overshoot "
         "against the first axis, one line per value of the other axes). Each point is the "
         "scenario with the --set overrides and then the point's values applied as 'wncs run "
         "--set' applies them; a point that does not validate is refused (exit 2) before "
@@ -357,25 +359,23 @@ def build_parser() -> argparse.ArgumentParser:
     export = _command(
         sub,
         "export",
-        "write every artefact of a run as CSV files",
-        "Write every artefact of a run as CSV files: per loop its trace (loop_LOOP.csv: t, "
-        "t_sampled, y, setpoint, u), per plant its states (plant_PLANT.csv), the network's "
-        "path statistics (network_paths.csv) and, with a WSN, its nodes' energy "
+        "write every artefact of a run as CSV or Parquet files",
+        "Write every artefact of a run as CSV (or Parquet) files: per loop its trace "
+        "(loop_LOOP.csv: t, t_sampled, y, setpoint, u), per plant its states (plant_PLANT.csv), "
+        "the network's path statistics (network_paths.csv) and, with a WSN, its nodes' energy "
         "(network_nodes.csv), and with a coordination agent its decisions and assignments "
         "(wncsca_decisions.csv, wncsca_assignments.csv). Times in the scenario's time units; "
-        "an empty cell is a missing value. Parquet is not available: neither pyarrow nor "
-        "pandas is installed with wncs (--parquet is refused, exit 2).",
+        "a missing value is an empty cell (CSV) or a null (Parquet).",
     )
     export.add_argument("dir", metavar="RUN_DIR", help="run directory written by wncs run")
     fmt = export.add_mutually_exclusive_group(required=True)
     fmt.add_argument("--csv", action="store_true", help="write CSV files")
-    fmt.add_argument(
-        "--parquet",
-        action="store_true",
-        help="not available (needs pyarrow or pandas, which wncs does not install)",
-    )
+    fmt.add_argument("--parquet", action="store_true", help="write Parquet files (pyarrow)")
     export.add_argument(
-        "--out", default=None, metavar="DIR", help="output directory (default RUN_DIR/csv)"
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="output directory (default RUN_DIR/csv or RUN_DIR/parquet)",
     )
     return parser
 
@@ -543,13 +543,13 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    if args.parquet:
-        raise ConfigError(
-            "--parquet: not available, neither pyarrow nor pandas is installed with wncs; use --csv"
-        )
-    written = export_csv(args.dir, args.out)
-    where = written[0].parent if written else Path(args.out or Path(args.dir) / "csv")
-    print(f"wrote {len(written)} CSV files to {where}: " + ", ".join(p.name for p in written))
+    fmt = "parquet" if args.parquet else "csv"
+    written = export_run(args.dir, args.out, fmt=fmt)
+    where = written[0].parent if written else Path(args.out or Path(args.dir) / fmt)
+    print(
+        f"wrote {len(written)} {fmt.upper()} files to {where}: "
+        + ", ".join(p.name for p in written)
+    )
     return 0
 
 
@@ -559,7 +559,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         args.scenario, axes, args.out, overrides=args.set, jobs=args.jobs, progress=sys.stderr
     )
     out = Path(args.out)
-    print(f"{len(rows)} points: {out / SWEEP_CSV}, {out / SWEEP_PNG}")
+    print(f"{len(rows)} points: {out / SWEEP_CSV}, {out / SWEEP_PARQUET}, {out / SWEEP_PNG}")
     return 0
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "RECORD_FILE",
     "write_summary",
     "write_plots",
+    "draw_loop",
     "law_figures",
     "save_record",
     "load_saved_record",
@@ -100,51 +101,55 @@ def load_run(out: Path) -> tuple[Scenario, RunRecord]:
     return scenario, load_saved_record(out)
 
 
+def draw_loop(ax: Any, ax_u: Any, rec: RunRecord, name: str) -> None:
+    """Draw loop ``name`` of ``rec`` on two matplotlib axes: the plant's true output with the set
+    point and the delivered samples on ``ax``, the control moves on ``ax_u``."""
+    loop = rec.loops[name]
+    assert loop.sensor is not None  # an actuator-only loop has no output to draw
+    t, y = rec.plants[loop.plant].signal(loop.sensor)
+    sp_t = [to_units(v) for v, _ in loop.setpoints] + [to_units(rec.end_time)]
+    sp_v = [v for _, v in loop.setpoints]
+    ax.plot(t, y, label=f"{loop.sensor} (plant)")
+    ax.step(sp_t, [*sp_v, sp_v[-1]], where="post", ls="--", color="k", label="set point")
+    if loop.t:
+        ax.plot([to_units(v) for v in loop.t], loop.y, ".", ms=3, label="delivered samples")
+        moves = [(to_units(t), u) for t, u in zip(loop.t, loop.u, strict=True) if u is not None]
+        if moves:
+            ax_u.step(*zip(*moves, strict=True), where="post", color="C2")
+    ax.set_ylabel(loop.sensor)
+    ax.set_title(f"{rec.scenario}: loop {name} ({rec.engine} engine)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    ax_u.set_ylabel("u")
+    ax_u.set_xlabel(f"time [{rec.time_unit}]")
+    ax_u.grid(True, alpha=0.3)
+
+
 def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) -> list[Path]:
     """Write the run's plots and return their paths.
 
     One PNG per loop: the true output and its set point against time, and the control moves;
     the coordination agent's figures when it ran; and, given the ``scenario``, the figures of
-    every multi-loop controller whose law registers some (:func:`law_figures`).
+    every multi-loop controller whose law registers some (:func:`law_figures`). Drawn on
+    :class:`matplotlib.figure.Figure` objects of their own: no pyplot, so a notebook's backend
+    and current figure are left alone.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     paths = []
-    unit = rec.time_unit
     for name, loop in sorted(rec.loops.items()):
         if loop.sensor is None:
             continue  # an actuator-only loop: no output to plot
-        t, y = rec.plants[loop.plant].signal(loop.sensor)
-        sp_t = [to_units(v) for v, _ in loop.setpoints] + [to_units(rec.end_time)]
-        sp_v = [v for _, v in loop.setpoints]
-        fig, (ax, ax_u) = plt.subplots(
-            2, 1, figsize=(7, 5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]}
-        )
-        ax.plot(t, y, label=f"{loop.sensor} (plant)")
-        ax.step(sp_t, [*sp_v, sp_v[-1]], where="post", ls="--", color="k", label="set point")
-        if loop.t:
-            ax.plot([to_units(v) for v in loop.t], loop.y, ".", ms=3, label="delivered samples")
-            moves = [(to_units(t), u) for t, u in zip(loop.t, loop.u, strict=True) if u is not None]
-            if moves:
-                ax_u.step(*zip(*moves, strict=True), where="post", color="C2")
-        ax.set_ylabel(loop.sensor)
-        ax.set_title(f"{rec.scenario}: loop {name} ({rec.engine} engine)")
-        ax.legend(loc="best", fontsize=8)
-        ax.grid(True, alpha=0.3)
-        ax_u.set_ylabel("u")
-        ax_u.set_xlabel(f"time [{unit}]")
-        ax_u.grid(True, alpha=0.3)
+        fig = Figure(figsize=(7, 5))
+        ax, ax_u = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+        draw_loop(ax, ax_u, rec, name)
         fig.tight_layout()
         path = out / f"{name}.png"
         fig.savefig(path, dpi=110)
-        plt.close(fig)
         paths.append(path)
     if rec.wncsca:
         paths += run_plots(
-            wncsca_summary(rec.wncsca), out, unit=unit, end_time=to_units(rec.end_time)
+            wncsca_summary(rec.wncsca), out, unit=rec.time_unit, end_time=to_units(rec.end_time)
         )
     if scenario is not None:
         paths += law_figures(rec, scenario, out)
@@ -160,11 +165,6 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
     figure ``key`` of controller ``name`` is saved as ``<law type>_<name>_<key>.png`` (for the
     MRAC: ``mrac_<name>_states.png``, ``_outputs``, ``_errors``, ``_theta``).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     paths = []
     for name, cfg in sorted(scenario.nodes_of(ControllerNodeConfig).items()):
         if cfg.loops is None:
@@ -185,6 +185,5 @@ def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
         for key, fig in figs.items():
             path = out / f"{cfg.law.type}_{name}_{key}.png"
             fig.savefig(path, dpi=110)
-            plt.close(fig)
             paths.append(path)
     return paths

@@ -13,6 +13,7 @@ anything runs, naming the ``--grid`` argument and the value.
 ``DIR/sweep.csv`` has one row per point: the grid values, then per loop ``LOOP.overshoot_pct``,
 ``LOOP.settling_time`` and ``LOOP.iae`` from the run's summary (empty where the figure is
 ``null``) and, with a coordination agent, ``LOOP.control_period`` from its last assignment.
+``DIR/sweep.parquet`` is the same table in Parquet (types kept: integers, floats, nulls).
 ``DIR/sweep.png`` draws each loop's overshoot against the first axis, one line per value of the
 other axes.
 """
@@ -28,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
+import pandas as pd
+
 from core.errors import ConfigError
 from core.record import summarize
 from runtime.direct import simulate
@@ -40,6 +43,7 @@ __all__ = [
     "FIGURES",
     "SWEEP_CSV",
     "SWEEP_PNG",
+    "SWEEP_PARQUET",
     "parse_axis",
     "parse_range",
     "grid_points",
@@ -50,6 +54,7 @@ __all__ = [
 
 SWEEP_CSV = "sweep.csv"
 SWEEP_PNG = "sweep.png"
+SWEEP_PARQUET = "sweep.parquet"
 FIGURES = ("overshoot_pct", "settling_time", "iae")
 """The summary's figures per loop, in the table's order."""
 
@@ -188,12 +193,13 @@ def sweep(
     axes: Sequence[Axis],
     out: str | Path,
     *,
-    overrides: Sequence[str] = (),
+    overrides: Sequence[str | Override] = (),
     jobs: int | None = None,
     progress: TextIO | None = None,
 ) -> list[dict[str, Any]]:
-    """Run ``scenario`` at every point of the grid of ``axes``; write ``sweep.csv`` and
-    ``sweep.png`` to ``out`` and return the rows (a dict per point, in grid order).
+    """Run ``scenario`` at every point of the grid of ``axes``; write ``sweep.csv`` (and the same
+    table as ``sweep.parquet``) and ``sweep.png`` to ``out`` and return the rows (a dict per
+    point, in grid order).
 
     Parameters
     ----------
@@ -203,7 +209,7 @@ def sweep(
         The grid's axes (:func:`parse_axis`).
     out : str or Path
         Output directory (created).
-    overrides : sequence of str
+    overrides : sequence of str or Override
         ``--set`` overrides applied to every point, before the point's values.
     jobs : int, optional
         Worker processes (default ``os.cpu_count()``); 1 runs the points in this process.
@@ -223,7 +229,7 @@ def sweep(
     jobs = jobs or os.cpu_count() or 1
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
-    base = [parse_override(o) for o in overrides]
+    base = [o if isinstance(o, Override) else parse_override(o) for o in overrides]
     check_grid(scenario, axes, base)
     points = grid_points(axes)
     todo = [_overrides(base, axes, p) for p in points]
@@ -243,6 +249,7 @@ def sweep(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _write_csv(rows, out / SWEEP_CSV)
+    pd.DataFrame(rows).to_parquet(out / SWEEP_PARQUET, index=False)
     _write_plot(axes, rows, out / SWEEP_PNG, title=Path(scenario).stem)
     return rows
 

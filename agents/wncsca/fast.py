@@ -77,7 +77,6 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 import scipy.signal
 from numpy.typing import NDArray
 
@@ -86,6 +85,7 @@ from agents.wncsca.model import LoopModel
 from controllers.pi import PIConfig
 from controllers.registry import uses_feedforward
 from core.time import TICKS_PER_UNIT, to_ticks
+from plants.linearization import equilibrium, jacobians
 
 __all__ = ["OBJECTIVES", "LinearPredictor", "energy_rate", "fast_periods"]
 
@@ -157,7 +157,7 @@ class _PlantData:
         hit = self._lin.get(setpoints)
         if hit is None:
             x_bar, u_bar = self._equilibrium(setpoints)
-            A, B, Cy = _jacobians(self.model, x_bar, u_bar)
+            A, B, Cy = jacobians(self.model, x_bar, u_bar)
             y0 = np.asarray(self.model.outputs(x_bar), dtype=float) - Cy @ x_bar
             f0 = np.asarray(self.model.rhs(0.0, x_bar, u_bar), dtype=float)
             hit = self._lin[setpoints] = (A, B, Cy, y0, x_bar, u_bar, f0)
@@ -166,61 +166,12 @@ class _PlantData:
     def _equilibrium(
         self, setpoints: tuple[float, ...]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        model = self.model
         y_bar = {
-            model.output_names[self.y_index[n]]: v
+            self.model.output_names[self.y_index[n]]: v
             for n, v in zip(self.loops, setpoints, strict=True)
         }
-        if hasattr(model, "equilibrium"):
-            try:
-                x, u = model.equilibrium(y_bar)
-                return np.asarray(x, dtype=float), np.asarray(u, dtype=float)
-            except ValueError:
-                pass
-        # generic: f(x, u) = 0 and y(x) = set points, the loops' inputs free, the others at u0
         free = [self.u_index[n] for n in self.loops]
-        nx = len(self.x0)
-        ys = [self.y_index[n] for n in self.loops]
-
-        def residual(z: NDArray[np.float64]) -> NDArray[np.float64]:
-            x, u = z[:nx], self.u0.copy()
-            u[free] = z[nx:]
-            y = np.asarray(model.outputs(x), dtype=float)[ys]
-            return np.concatenate([model.rhs(0.0, x, u), y - np.array(setpoints)])
-
-        sol = scipy.optimize.root(residual, np.concatenate([self.x0, self.u0[free]]))
-        x, u = sol.x[:nx], self.u0.copy()
-        u[free] = sol.x[nx:]
-        return x, u
-
-
-def _jacobians(
-    model: Any, x: NDArray[np.float64], u: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], ...]:
-    """``df/dx``, ``df/du`` and ``dy/dx`` at ``(x, u)`` by central differences."""
-
-    def f(xx: NDArray[np.float64], uu: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(model.rhs(0.0, xx, uu), dtype=float)
-
-    def g(xx: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(model.outputs(xx), dtype=float)
-
-    nx, nu = len(x), len(u)
-    A = np.zeros((nx, nx))
-    Cy = np.zeros((len(g(x)), nx))
-    for k in range(nx):
-        d = 1e-6 * max(1.0, abs(x[k]))
-        e = np.zeros(nx)
-        e[k] = d
-        A[:, k] = (f(x + e, u) - f(x - e, u)) / (2 * d)
-        Cy[:, k] = (g(x + e) - g(x - e)) / (2 * d)
-    B = np.zeros((nx, nu))
-    for k in range(nu):
-        d = 1e-6 * max(1.0, abs(u[k]))
-        e = np.zeros(nu)
-        e[k] = d
-        B[:, k] = (f(x, u + e) - f(x, u - e)) / (2 * d)
-    return A, B, Cy
+        return equilibrium(self.model, y_bar, self.x0, self.u0, free)
 
 
 def _pade(delay: float, order: int = _PADE_ORDER) -> tuple[NDArray[np.float64], ...]:

@@ -12,21 +12,19 @@ from agents.wncsca.assignment import Assignment, Trial
 __all__ = ["fig10"]
 
 
-def _pyplot() -> Any:
-    import matplotlib
+def _figure(figsize: tuple[float, float]) -> Any:
+    """A figure of its own (no pyplot: a notebook's backend and current figure are left alone)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(figsize=figsize)
 
 
 def fig10(assignment: Assignment, path: Path, *, limit: float = 25.0) -> Path:
     """Seed 000, Fig. 10: the paper method's trials (period and the searched loop's overshoot
     against trial number, acceptable ``o`` / violating ``x``) from ``assignment.trace``."""
-    plt = _pyplot()
     trials = [t for t in assignment.trace if t.loop is not None]
-    fig, (ax_p, ax_os) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True)
+    fig = _figure((6.4, 6.0))
+    (ax_p, ax_os) = fig.subplots(2, 1, sharex=True)
     loops = sorted({t.loop for t in trials if t.loop is not None})
     colours = dict(zip(loops, ("tab:blue", "tab:red", "tab:green", "tab:purple"), strict=False))
     for loop in loops:
@@ -62,7 +60,6 @@ def fig10(assignment: Assignment, path: Path, *, limit: float = 25.0) -> Path:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return path
 
 
@@ -108,11 +105,11 @@ def run_plots(
     """A run's agent plots: ``wncsca_periods.png`` (each loop's sampling period against time,
     open intervals shaded, proposals marked by verdict) and ``search_<n>.png`` (Fig. 10 style,
     one per negotiation)."""
-    plt = _pyplot()
     paths = []
     assignments = w.get("assignments", [])
     if assignments:
-        fig, ax = plt.subplots(figsize=(8, 4))
+        fig = _figure((8, 4))
+        ax = fig.subplots()
         loops = sorted(assignments[0]["periods"])
         end = max(a["t"] for a in assignments) if end_time is None else end_time
         ts = [a["t"] for a in assignments] + [end]
@@ -158,7 +155,6 @@ def run_plots(
         fig.tight_layout()
         path = out / "wncsca_periods.png"
         fig.savefig(path, dpi=110)
-        plt.close(fig)
         paths.append(path)
     for n, a in enumerate(a for a in assignments if a.get("search")):
         paths.append(fig10(assignment_from_dict(a["search"]), out / f"search_{n}.png", limit=limit))

@@ -1,5 +1,6 @@
-"""``wncs export RUN_DIR --csv`` (issue 17, item 6): a direct run's CSV files hold its record
-(``record.json``, read here independently as JSON), and ``--parquet`` is refused (exit 2)."""
+"""``wncs export RUN_DIR --csv|--parquet`` (issue 17, item 6): a direct run's CSV files hold its
+record (``record.json``, read here independently as JSON), and the Parquet files hold the same
+tables as the CSV files (read back with pyarrow)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import csv
 import json
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 from core.time import TICKS_PER_UNIT
@@ -74,11 +76,23 @@ def test_default_out_is_the_run_directorys_csv(capsys, run_dir):
     assert (run_dir / "csv" / "loop_level.csv").is_file()
 
 
-def test_parquet_is_refused_with_a_clear_message(capsys, run_dir, tmp_path):
-    assert main(["export", str(run_dir), "--parquet", "--out", str(tmp_path / "pq")]) == 2
-    err = capsys.readouterr().err
-    assert "--parquet: not available" in err and "use --csv" in err
-    assert not (tmp_path / "pq").exists()
+def test_parquet_files_hold_the_csv_tables(capsys, run_dir, tmp_path):
+    assert main(["export", str(run_dir), "--csv", "--out", str(tmp_path / "csv")]) == 0
+    assert main(["export", str(run_dir), "--parquet", "--out", str(tmp_path / "pq")]) == 0
+    assert "wrote 4 PARQUET files" in capsys.readouterr().out
+    csv_files = sorted(p.stem for p in (tmp_path / "csv").glob("*.csv"))
+    assert sorted(p.stem for p in (tmp_path / "pq").glob("*.parquet")) == csv_files
+    for stem in csv_files:
+        header, rows = _rows(tmp_path / "csv" / f"{stem}.csv")
+        table = pq.read_table(tmp_path / "pq" / f"{stem}.parquet").to_pydict()
+        assert list(table) == header
+        for k, name in enumerate(header):
+            column = table[name]
+            cells = [r[k] for r in rows]
+            if stem.startswith("network_paths") and name == "loop":
+                assert column == cells
+            else:
+                assert column == [_num(c) for c in cells], (stem, name)
 
 
 def test_not_a_run_directory_is_refused(capsys, tmp_path):

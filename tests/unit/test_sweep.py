@@ -8,6 +8,7 @@ import csv
 import itertools
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 from core.errors import ConfigError
@@ -120,6 +121,12 @@ def test_a_3x3_grid_equals_9_separate_runs(capsys, tmp_path):
     with (out / "sweep.csv").open(newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 9
+    table = pq.read_table(out / "sweep.parquet").to_pylist()  # the same table, types kept
+    assert [list(r) for r in table] == [list(r) for r in rows]
+    for got, row in zip(table, rows, strict=True):
+        assert {k: "" if v is None else v for k, v in got.items()} == {
+            k: "" if c == "" else float(c) for k, c in row.items()
+        }
     for row, (level, temperature) in zip(rows, itertools.product(LEVEL, TEMPERATURE), strict=True):
         assert float(row["loops.level.tau_s"]) == level
         assert float(row["loops.temperature.tau_s"]) == temperature

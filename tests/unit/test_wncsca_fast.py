@@ -20,9 +20,10 @@ import pytest
 
 from agents.wncsca.config import SetpointTest, WncscaConfig
 from agents.wncsca.config import TestStep as Step
-from agents.wncsca.fast import LinearPredictor, _jacobians, energy_rate, fast_periods
+from agents.wncsca.fast import LinearPredictor, energy_rate, fast_periods
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from plants.linearization import jacobians
 from runtime.direct import loop_model
 from runtime.scenario import Scenario, load_scenario
 from tests.conftest import SCENARIOS
@@ -51,7 +52,7 @@ def rel(a: float, b: float) -> float:
 def test_jacobians_match_the_analytic_jcstr_linearisation():
     plant = load_scenario(SCENARIOS / "jcstr_wncs.yaml").nodes["reactor"].build()
     x, u = plant.equilibrium({"H": 0.75, "T": 56.0})
-    A, B, Cy = _jacobians(plant, x, u)
+    A, B, Cy = jacobians(plant, x, u)
     A_ref, B_ref = plant.jacobians(x, u)
     np.testing.assert_allclose(A, A_ref, rtol=1e-6, atol=1e-6)
     np.testing.assert_allclose(B, B_ref, rtol=1e-6, atol=1e-6)
