@@ -4,6 +4,7 @@ No zenoh import here: the schemas are plain pydantic models usable from any proc
 """
 
 from bus_schemas.bodies import (
+    CellBody,
     Decision,
     DelayDistribution,
     Done,
@@ -23,16 +24,19 @@ from bus_schemas.bodies import (
     Rates,
     Sample,
     SamplingPeriod,
+    ScheduleSummary,
     Setpoint,
     Stop,
     Tick,
     Timing,
+    TschCapacity,
 )
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope
 
 __all__ = [
     "SCHEMA_VERSION",
     "Envelope",
+    "CellBody",
     "Decision",
     "DelayDistribution",
     "Done",
@@ -53,6 +57,8 @@ __all__ = [
     "Stop",
     "Tick",
     "Timing",
+    "TschCapacity",
+    "ScheduleSummary",
     "MonitorAssessment",
     "MonitorCandidate",
     "MonitorHarris",

@@ -17,6 +17,9 @@ __all__ = [
     "PlantState",
     "Loss",
     "NetApplied",
+    "CellBody",
+    "TschCapacity",
+    "ScheduleSummary",
     "DelayDistribution",
     "PathConfig",
     "NodeStats",
@@ -117,6 +120,10 @@ class Loss(BaseModel):
     loop: str = Field(description="the loop, or the link for direction 'link'")
     direction: Literal["sensor", "actuator", "link"]
     t_ready: int = Field(ge=0, strict=True, description="time the packet entered the path, ticks")
+    reason: str | None = Field(
+        default=None,
+        description="a TSCH network: queue_full, retries_exhausted, no_route or node_down",
+    )
 
 
 class DelayDistribution(BaseModel):
@@ -177,6 +184,53 @@ class PathConfig(BaseModel):
     )
 
 
+class CellBody(BaseModel):
+    """One TSCH cell: ``tx`` sends to ``rx`` in slot offset ``slot`` on channel offset
+    ``channel`` of the slotframes ``n`` with ``n % every == phase``."""
+
+    model_config = _FROZEN
+
+    slot: int = Field(ge=0, strict=True)
+    channel: int = Field(ge=0, strict=True)
+    tx: str
+    rx: str
+    shared: bool = False
+    every: int = Field(default=1, ge=1, strict=True)
+    phase: int = Field(default=0, ge=0, strict=True)
+
+
+class TschCapacity(BaseModel):
+    """What a TSCH gateway's manager schedules with (``Proposal.tsch``): the coordination agent
+    asks the same scheduler whether its periods can be carried on the proposed routes."""
+
+    model_config = _FROZEN
+
+    slot_ticks: int = Field(ge=1, strict=True, description="slot duration, ticks")
+    length: int = Field(ge=1, strict=True, description="slots per slotframe")
+    channel_offsets: int = Field(ge=1, strict=True)
+    retry_cells: int = Field(ge=0, strict=True, description="extra cells per hop of a chain")
+    static: bool = Field(description="the schedule is written in the scenario, not computed")
+    cells: list[CellBody] = Field(
+        default_factory=list, description="written cells (the static schedule, or shared ones)"
+    )
+
+
+class ScheduleSummary(BaseModel):
+    """A TSCH manager's schedule as applied (``NetApplied.schedule``)."""
+
+    model_config = _FROZEN
+
+    cells: dict[str, float] = Field(
+        description="link 'a->b' -> cells per slotframe (a cell every e slotframes counts 1/e)"
+    )
+    lacking: dict[str, int] = Field(
+        default_factory=dict, description="link 'a->b' -> cells the manager could not place"
+    )
+    lifetime_h: dict[str, float | None] = Field(
+        default_factory=dict, description="node -> projected lifetime under it, hours"
+    )
+
+
 class NetApplied(BaseModel):
     """The network's configuration now in force (``net/applied``): at start and after each event."""
 
@@ -186,11 +240,17 @@ class NetApplied(BaseModel):
         description="'initial', the type of the event that caused it, 'rates' (sampling periods "
         "applied) or 'no_alternative' (a rejected proposal has no alternative left)"
     )
-    source: Literal["initial", "scenario", "injected", "alternative", "agent"]
+    source: Literal["initial", "scenario", "injected", "alternative", "agent", "battery"]
     paths: dict[str, PathConfig] = Field(description="path '<loop>.<direction>' -> its route")
     proposal: int | None = Field(default=None, description="the accepted proposal's id")
     periods: dict[str, int] = Field(
         default_factory=dict, description="loop -> sampling period now applied, ticks"
+    )
+    schedule: ScheduleSummary | None = Field(
+        default=None, description="a TSCH gateway: its manager's schedule now in force"
+    )
+    reason: str | None = Field(
+        default=None, description="event 'rates_refused': why the manager cannot carry them"
     )
 
 
@@ -237,8 +297,11 @@ class Proposal(BaseModel):
 
     id: int = Field(ge=0, strict=True, description="increasing per gateway")
     event: str
-    source: Literal["initial", "scenario", "injected", "alternative"]
+    source: Literal["initial", "scenario", "injected", "alternative", "battery"]
     paths: dict[str, PathConfig]
+    tsch: TschCapacity | None = Field(
+        default=None, description="a TSCH gateway: what its manager schedules with"
+    )
 
 
 class Decision(BaseModel):
@@ -249,7 +312,7 @@ class Decision(BaseModel):
 
     model_config = _FROZEN
 
-    subject: Literal["proposal", "mode", "setpoint", "links"]
+    subject: Literal["proposal", "mode", "setpoint", "links", "rates"]
     network: str | None = Field(default=None, description="the proposing network node")
     proposal: int | None = Field(default=None, description="the proposal's id, if any")
     verdict: Literal["accept", "reject", "refuse", "keep"]

@@ -37,13 +37,15 @@ from bus_schemas import (
     Rates,
     Sample,
     SamplingPeriod,
+    ScheduleSummary,
     keys,
 )
 from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
 from core.time import to_ticks, to_units
 from gateway.carrier import ACTUATOR, LINK, SENSOR, PathCarrier
-from gateway.topology import parse_event
+from gateway.topology import NodeDown, parse_event
+from gateway.tsch.schedule import Schedule
 
 __all__ = ["NetworkBehaviour", "NetworkSpec"]
 
@@ -84,6 +86,9 @@ class NetworkBehaviour(Behaviour):
         self._periods = {
             n: to_ticks(lp.tau_s) for n, lp in self.carrier.loops.items() if lp.tau_s is not None
         }
+        self._wakes: set[int] = set()  # a TSCH network's pending wake-ups (ends of busy slots)
+        self._last_sample: dict[str, int] = {}  # loop -> its last sample's time, ticks
+        self._battery_check: int | None = None
         if self.carrier.topology is not None:
             self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
@@ -124,6 +129,7 @@ class NetworkBehaviour(Behaviour):
                 paths = self.carrier.apply(event, self.now)
             self._alternatives = None  # a new state of the network: alternatives start afresh
             self._propose(kind, source, paths)
+            self._pump()
 
         return apply
 
@@ -134,14 +140,18 @@ class NetworkBehaviour(Behaviour):
             "network configuration #%d (%s %s): hops %s", self._proposals, source, kind, hops
         )
         self._paths = paths
+        tsch = self.carrier.tsch.capacity() if self.carrier.tsch is not None else None
         self.publish(
             keys.net_proposal(),
-            Proposal(id=self._proposals, event=kind, source=source, paths=paths),
+            Proposal(id=self._proposals, event=kind, source=source, paths=paths, tsch=tsch),
         )
         if self.governed:
             self._awaiting = (self._proposals, kind, source, paths)
         else:
-            self.publish(keys.net_applied(), NetApplied(event=kind, source=source, paths=paths))
+            self.publish(
+                keys.net_applied(),
+                NetApplied(event=kind, source=source, paths=paths, schedule=self._summary()),
+            )
         self._proposals += 1
 
     def _on_decision(self, env: RawEnvelope, decision: Decision) -> None:
@@ -154,7 +164,13 @@ class NetworkBehaviour(Behaviour):
             self._awaiting = None
             self.publish(
                 keys.net_applied(),
-                NetApplied(event=kind, source=source, paths=paths, proposal=pid),
+                NetApplied(
+                    event=kind,
+                    source=source,
+                    paths=paths,
+                    proposal=pid,
+                    schedule=self._summary(),
+                ),
             )
         elif decision.verdict == "reject":
             if self._alternatives is None:
@@ -169,17 +185,25 @@ class NetworkBehaviour(Behaviour):
                 )
                 return
             self._propose("alternative", "alternative", self.carrier.set_routes(routes, self.now))
+            self._pump()
 
     def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
+        if self.carrier.slotted and not self._can_carry(rates):
+            return
         changed = {}
         for name, loop in self.carrier.loops.items():
             if loop.sensor is None:
                 continue
             period = rates.periods.get(name)
-            if period is None or period == self._periods[name]:
+            if period is None:
+                continue
+            period = self.carrier.granted(period)  # a TSCH manager's grant; else as asked
+            if period == self._periods[name]:
                 continue
             self._periods[name] = period
-            self.carrier.set_period(name, to_units(period), self.now)
+            last = self._last_sample.get(name)
+            nxt = self.now if last is None else max(last + period, self.now)
+            self.carrier.set_period(name, to_units(period), self.now, next_sample=nxt)
             self.publish(keys.sampling(loop.plant, loop.sensor), SamplingPeriod(period=period))
             changed[name] = period
         if changed:
@@ -191,14 +215,54 @@ class NetworkBehaviour(Behaviour):
                     paths=self._paths,
                     proposal=rates.proposal,
                     periods=dict(self._periods),
+                    schedule=self._summary(),
                 ),
             )
+            self._pump()
+
+    def _can_carry(self, rates: Rates) -> bool:
+        """A TSCH manager's answer to the agent's periods: it can carry them, or it refuses
+        them on ``net/applied`` (event ``rates_refused``) naming the links that lack cells,
+        and keeps the periods in force."""
+        asked = {
+            n: to_units(self.carrier.granted(p))
+            for n, p in rates.periods.items()
+            if n in self.carrier.loops and self.carrier.loops[n].sensor is not None
+        }
+        plan = self.carrier.plan(asked)
+        if plan.feasible:
+            return True
+        reason = f"the manager cannot carry these periods: {plan.describe_lack()}"
+        self.log.warning("rates refused: %s", reason)
+        self.publish(
+            keys.net_applied(),
+            NetApplied(
+                event="rates_refused",
+                source="agent",
+                paths=self._paths,
+                proposal=rates.proposal,
+                periods=dict(self._periods),
+                schedule=_summary_of(plan, {}),
+                reason=reason,
+            ),
+        )
+        return False
+
+    def _summary(self) -> ScheduleSummary | None:
+        """The schedule in force and the lifetimes it projects (a TSCH gateway)."""
+        tsch = self.carrier.tsch
+        if tsch is None:
+            return None
+        energy = self.carrier.energy(self.now)
+        self._pump()
+        return _summary_of(tsch.schedule, {n: e["lifetime_h"] for n, e in energy.items()})
 
     def _stats(self) -> None:
         self.publish(
             keys.net_stats(),
             NetStats(paths=self.carrier.path_stats(self.now), nodes=self.carrier.energy(self.now)),
         )
+        self._pump()
 
     def _on_injected(self, env: RawEnvelope, msg: NetworkEvent) -> None:
         """An event injected while the run goes on (``wncs inject``), stamped by the clock."""
@@ -210,9 +274,16 @@ class NetworkBehaviour(Behaviour):
             return
         self._alternatives = None
         self._propose(event.type, "injected", paths)
+        self._pump()
 
     def _path(self, loop: str, direction: str, out_key: str) -> Any:
         def forward(env: RawEnvelope, body: Any) -> None:
+            if direction == SENSOR:
+                self._last_sample[loop] = body.t_sampled
+            if self.carrier.slotted:
+                self.carrier.submit(loop, direction, self.now, (out_key, body))
+                self._pump()
+                return
             t = self.carrier.deliver(loop, direction, self.now)
             if t is None:
                 self.publish(
@@ -224,3 +295,68 @@ class NetworkBehaviour(Behaviour):
                 self.at(t, lambda: self.publish(out_key, body))
 
         return forward
+
+    # -- a TSCH network ------------------------------------------------------------------------
+
+    def _pump(self) -> None:
+        """Publish what the TSCH network carried up to now, and wake at the end of its next busy
+        slot; check the batteries when one is due to run out."""
+        if not self.carrier.slotted:
+            return
+        self.carrier.advance(self.now)
+        for c in self.carrier.drain():
+            out_key, body = c.token
+            if c.t_deliver is None:
+                self.publish(
+                    keys.net_lost(),
+                    Loss(loop=c.loop, direction=c.direction, t_ready=c.t_ready, reason=c.reason),
+                )
+            elif c.t_deliver <= self.now:
+                self.publish(out_key, body)
+            else:  # a constant (wired) path of a TSCH gateway
+                self.at(c.t_deliver, lambda k=out_key, b=body: self.publish(k, b))
+        wake = self.carrier.next_wakeup()
+        if wake is not None and wake not in self._wakes:
+            self._wakes.add(wake)
+            self.at(wake, self._woken(wake))
+        self._plan_battery_check()
+
+    def _woken(self, t: int) -> Any:
+        def wake() -> None:
+            self._wakes.discard(t)
+            self._pump()
+
+        return wake
+
+    def _plan_battery_check(self) -> None:
+        tsch = self.carrier.tsch
+        if tsch is None or self._battery_check is not None:
+            return
+        due = tsch.depletion(self.now)
+        if due is None or due[0] > self.spec.end:
+            return
+        at = max(due[0], self.now)
+        self._battery_check = at
+        self.at(at, self._check_batteries)
+
+    def _check_batteries(self) -> None:
+        """A battery due to run out: the nodes whose charge is spent go down (as ``node_down``:
+        the gateway reroutes and proposes); otherwise the check is planned again."""
+        self._battery_check = None
+        tsch = self.carrier.tsch
+        assert tsch is not None
+        self.carrier.advance(self.now)
+        for node in tsch.empty(self.now):
+            self.log.warning("node %s: battery empty at t = %s", node, to_units(self.now))
+            paths = self.carrier.apply(NodeDown(node=node), self.now)
+            self._alternatives = None
+            self._propose("battery_empty", "battery", paths)
+        self._pump()
+
+
+def _summary_of(schedule: Schedule, lifetimes: dict[str, float | None]) -> ScheduleSummary:
+    return ScheduleSummary(
+        cells={f"{a}->{b}": n for (a, b), n in schedule.cells_per_frame().items()},
+        lacking={f"{a}->{b}": n for (a, b), n in schedule.lacking.items()},
+        lifetime_h=lifetimes,
+    )

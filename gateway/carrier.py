@@ -35,15 +35,32 @@ from gateway import distribution
 from gateway.energy import EnergyMeter, projected_lifetime
 from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
 from gateway.paths import Route, deliver
-from gateway.topology import Topology
+from gateway.topology import Interference, LinkDegraded, NodeDown, NodeUp, Topology
+from gateway.tsch.mac import Outcome
+from gateway.tsch.network import TschNetwork, effective_links, link_quality_of
 
-__all__ = ["CarrierSpec", "PathCarrier", "SENSOR", "ACTUATOR", "LINK"]
+__all__ = ["CarrierSpec", "PathCarrier", "Carried", "SENSOR", "ACTUATOR", "LINK"]
 
 SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
 _STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
 _PING_STREAM = {SENSOR: 2, ACTUATOR: 3, LINK: 5}  # and of its ping probes
 _DONE = object()  # a replayed trace has run out
 _MODEL_STREAM = {SENSOR: 6, ACTUATOR: 7, LINK: 8}  # and of its predicted delay distribution
+_TSCH_LINKS_STREAM = 9  # a TSCH network's shadowing draws
+_TSCH_STREAM = 10  # and its MAC's
+
+
+@dataclass(frozen=True)
+class Carried:
+    """What a TSCH network did with a packet (:meth:`PathCarrier.drain`): delivered at
+    ``t_deliver`` (ticks) or lost (``None``, with the MAC's ``reason``)."""
+
+    loop: str
+    direction: str
+    token: Any
+    t_ready: int
+    t_deliver: int | None
+    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -92,8 +109,17 @@ class PathCarrier:
         self.routes: dict[tuple[str, str], Route | None] = {}
         topology = None
         self.wireless = cfg is not None
+        self.tsch: TschNetwork | None = None
+        quality = None
         if cfg is not None:
-            topology = Topology(cfg.topology)
+            topology_config = cfg.topology
+            if cfg.mac == "tsch":
+                links_rng = np.random.default_rng(
+                    [spec.seed, zlib.crc32(node.encode()), _TSCH_LINKS_STREAM]
+                )
+                quality = link_quality_of(cfg.tsch, cfg.topology, links_rng)
+                topology_config = effective_links(cfg.tsch, cfg.topology, quality)
+            topology = Topology(topology_config)
             gateway = cfg.gateway_node()
         paths = [(n, d) for n in self.loops for d in (SENSOR, ACTUATOR)]
         for name, direction in [*paths, *((n, LINK) for n in self.links)]:
@@ -127,7 +153,23 @@ class PathCarrier:
         self.topology = topology
         self.periods = {n: lp.tau_s for n, lp in self.loops.items() if lp.tau_s is not None}
         self.link_periods = {n: lk.period for n, lk in self.links.items()}
-        self.meter = EnergyMeter(cfg.energy, topology) if topology is not None else None
+        self.meter = (
+            EnergyMeter(cfg.energy, topology)
+            if topology is not None and cfg is not None and cfg.mac != "tsch"
+            else None
+        )
+        if cfg is not None and cfg.mac == "tsch":
+            self.tsch = TschNetwork(
+                cfg.tsch,
+                cfg.energy,
+                topology,
+                quality,
+                seed=[spec.seed, zlib.crc32(node.encode()), _TSCH_STREAM],
+            )
+        self._pending: list[Carried] = []
+        self._next_sample: dict[str, int] = {}  # a TSCH network: loop -> its next sample, ticks
+        self._tokens: dict[int, tuple[str, str, Any, int]] = {}
+        self._serial = 0
         self.stamps = {path: TimestampEstimator() for path in self.routes}
         # what each routed path carried: (t_ready, t_deliver or None), for net/stats
         self.carried: dict[tuple[str, str], list[tuple[int, int | None]]] = {
@@ -153,16 +195,34 @@ class PathCarrier:
             if self.wireless
             else []
         )
+        if self.tsch is not None:
+            self._reschedule(0)
 
     def apply(self, event: Any, t: int) -> dict[str, dict[str, Any]]:
         """Apply a reconfiguration event at ``t``; reroute every path; return
         :meth:`configuration` after it. Idle listening is charged up to ``t`` first."""
-        if self.topology is None or self.meter is None:
+        if self.topology is None:
             raise ValueError(f"{self.node}: a wired network has no topology to reconfigure")
-        self.meter.advance(t)
+        if isinstance(event, Interference) and self.tsch is None:
+            raise ValueError(
+                "interference needs a TSCH network (mac: tsch); the per-hop models have no channels"
+            )
+        if self.meter is not None:
+            self.meter.advance(t)
+        if self.tsch is not None:
+            self._take(self.tsch.mac.advance(t))
         routes = self.topology.apply(event).routes
+        if self.tsch is not None:
+            if isinstance(event, Interference):
+                self.tsch.interfere(event.channels, event.prr, t, event.duration, event.receivers)
+            elif isinstance(event, LinkDegraded):
+                self.tsch.degrade(event.a, event.b, event.prr)
+            elif isinstance(event, NodeDown | NodeUp):
+                self._take(self.tsch.mac.set_down(event.node, isinstance(event, NodeDown), t))
         for loop, direction in list(self.routes):
             self.routes[loop, direction] = routes[f"{loop}.{direction}"]
+        if self.tsch is not None:
+            self._reschedule(t)
         return self.configuration(t)
 
     def alternatives(self) -> Any:
@@ -179,14 +239,23 @@ class PathCarrier:
             self.meter.advance(t)
         for loop, direction in list(self.routes):
             self.routes[loop, direction] = routes[f"{loop}.{direction}"]
+        if self.tsch is not None:
+            self._reschedule(t)
         return self.configuration(t)
 
-    def set_period(self, loop: str, period: float, t: int) -> None:
+    def set_period(
+        self, loop: str, period: float, t: int, next_sample: int | None = None
+    ) -> None:
         """Loop ``loop``'s sensor samples every ``period`` (time units) from ``t``: for the
-        projected lifetimes. Idle listening is charged up to ``t`` first."""
+        projected lifetimes (and a TSCH network's schedule: its chains start at the slot of
+        ``next_sample``, the loop's next sample in ticks, default ``t``). Idle listening is
+        charged up to ``t`` first."""
+        self._next_sample[loop] = t if next_sample is None else next_sample
         if self.meter is not None:
             self.meter.advance(t)
         self.periods[loop] = period
+        if self.tsch is not None:
+            self._reschedule(t)
 
     def configuration(self, t: int) -> dict[str, dict[str, Any]]:
         """Path (``<loop>.<direction>``) -> hops (-1: down), route and the paper's three delay
@@ -205,7 +274,12 @@ class PathCarrier:
                 "hops": None,
             }
             predicted = None
-            if route is not None:
+            if route is not None and self.tsch is not None:
+                name = f"{loop}.{direction}"
+                estimates["ping"] = _finite(self.tsch.ping(name, route.nodes, t, self._ping_probes))
+                estimates["hops"] = _finite(self.tsch.hops_estimate(route.nodes, t))
+                predicted = self.tsch.predict(name, route.nodes, t).model_dump()
+            elif route is not None:
                 ping = ping_estimate(route, t, self._ping_rng[path], probes=self._ping_probes)
                 estimates["ping"] = _finite(ping.tau_d)
                 estimates["hops"] = _finite(hops_estimate(route).tau_d)
@@ -257,6 +331,9 @@ class PathCarrier:
     def energy(self, t: int) -> dict[str, dict[str, float | None]]:
         """Per topology node at ``t``: charge spent (mAh), battery (%), projected lifetime (h)
         at the current routes and the loops' sampling periods (``None``: mains powered)."""
+        if self.tsch is not None:
+            self._take(self.tsch.mac.advance(t))
+            return self.tsch.energy(t)
         if self.meter is None or self.topology is None:
             return {}
         self.meter.advance(t)
@@ -297,6 +374,8 @@ class PathCarrier:
         if const is not None:
             return t_ready + const
         route = self.routes[loop, direction]
+        if self.tsch is not None:
+            raise RuntimeError(f"{self.node}: a TSCH network carries with submit(), not deliver()")
         if route is None:
             self.carried[loop, direction].append((t_ready, None))
             return None  # no route: the path is down and its packets are lost
@@ -307,6 +386,111 @@ class PathCarrier:
         if delivery.t_deliver is not None:
             self.stamps[loop, direction].add(t_ready, delivery.t_deliver)
         return delivery.t_deliver
+
+    # -- a TSCH network: packets go in, outcomes come out as its slots run ------------------
+
+    @property
+    def slotted(self) -> bool:
+        """Whether packets are carried by a TSCH network (:meth:`submit`, :meth:`advance`,
+        :meth:`drain`) rather than given their delivery time at once (:meth:`deliver`)."""
+        return self.tsch is not None
+
+    def path_periods(self) -> dict[str, int]:
+        """Path name -> its packets' period, ticks (a loop's sensor and actuator paths: its
+        sampling period; a link: its period)."""
+        out = {}
+        for name, direction in self.routes:
+            period = self.link_periods[name] if direction == LINK else self.periods.get(name)
+            if period is not None:
+                out[f"{name}.{direction}"] = to_ticks(period)
+        return out
+
+    def route_nodes(self) -> dict[str, tuple[str, ...] | None]:
+        """Path name -> the nodes of its route (``None``: down)."""
+        return {
+            f"{n}.{d}": None if r is None else r.nodes for (n, d), r in sorted(self.routes.items())
+        }
+
+    def granted(self, period: int) -> int:
+        """The sampling period (ticks) a TSCH manager grants for ``period`` ticks (the period
+        itself on other networks)."""
+        return period if self.tsch is None else self.tsch.granted(period)
+
+    def path_offsets(self) -> dict[str, int]:
+        """A TSCH network: path name -> the slot of its next packet. A sensor path's is its
+        loop's next sample; the actuator path's follows the sensor path's chain (its move is
+        made when the sample arrives); a link's is 0."""
+        assert self.tsch is not None
+        slot = self.tsch.slot_ticks
+        per_hop = 1 + self.tsch.config.retry_cells
+        out = {}
+        for name, direction in sorted(self.routes):
+            if direction == LINK:
+                out[f"{name}.{direction}"] = 0
+                continue
+            first = self._next_sample.get(name, 0) // slot
+            if direction == ACTUATOR:
+                sensor = self.routes.get((name, SENSOR))
+                first += per_hop * (sensor.n_hops if sensor is not None else 0)
+            out[f"{name}.{direction}"] = first
+        return out
+
+    def _reschedule(self, t: int) -> None:
+        assert self.tsch is not None
+        self._take(
+            self.tsch.reschedule(
+                self.route_nodes(), self.path_periods(), t, offsets=self.path_offsets()
+            )
+        )
+
+    def plan(self, periods: Mapping[str, float]) -> Any:
+        """The manager's schedule if the loops sampled at ``periods`` (time units), not applied."""
+        assert self.tsch is not None
+        trial = {**self.periods, **periods}
+        ticks = {
+            f"{n}.{d}": to_ticks(self.link_periods[n] if d == LINK else trial[n])
+            for (n, d) in self.routes
+            if d == LINK or n in trial
+        }
+        return self.tsch.plan(self.route_nodes(), ticks, self.path_offsets())
+
+    def submit(self, loop: str, direction: str, t_ready: int, token: Any) -> None:
+        """A packet of path ``(loop, direction)`` enters the network at ``t_ready``; what
+        becomes of it comes out of :meth:`drain` (a wired or constant path: at once)."""
+        const = self._const.get((loop, direction))
+        if const is not None or self.tsch is None:
+            t = self.deliver(loop, direction, t_ready)
+            self._pending.append(Carried(loop, direction, token, t_ready, t))
+            return
+        self._serial += 1
+        self._tokens[self._serial] = (loop, direction, token, t_ready)
+        route = self.routes[loop, direction]
+        early = self.tsch.mac.submit(self._serial, None if route is None else route.nodes, t_ready)
+        if early is not None:
+            self._take([early])
+
+    def advance(self, t: int) -> None:
+        """Run the TSCH network's slots that start before ``t``."""
+        if self.tsch is not None:
+            self._take(self.tsch.mac.advance(t))
+
+    def next_wakeup(self) -> int | None:
+        """When the TSCH network next has something to do (end of a busy slot, ticks)."""
+        return None if self.tsch is None else self.tsch.mac.next_wakeup()
+
+    def drain(self) -> list[Carried]:
+        """What happened to the packets since the last call, in order."""
+        out, self._pending = self._pending, []
+        return out
+
+    def _take(self, outcomes: list[Outcome]) -> None:
+        for o in outcomes:
+            loop, direction, token, t_ready = self._tokens.pop(o.id)
+            done = o.t if o.delivered else None
+            self.carried[loop, direction].append((t_ready, done))
+            if done is not None:
+                self.stamps[loop, direction].add(t_ready, done)
+            self._pending.append(Carried(loop, direction, token, t_ready, done, o.reason))
 
 
 def _dumped(dist: Any) -> dict[str, Any] | None:

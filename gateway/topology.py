@@ -31,7 +31,9 @@ Model
 
 Events (:data:`TopologyEvent`, discriminated on ``type``): ``node_down``, ``node_up``,
 ``link_degraded`` (new PRR), ``delay_model_changed`` (one link's model, or the network default for
-all links), ``relay_added`` (with its links) and ``node_moved`` (new position, its links replaced).
+all links), ``relay_added`` (with its links), ``node_moved`` (new position, its links replaced)
+and ``interference`` (channels capped at a reception ratio: it changes no route here; a TSCH
+network, :mod:`gateway.tsch.network`, applies it to its channels).
 After each event the routes are recomputed (:meth:`Topology.apply`).
 
 Alternatives (:class:`Alternatives`): the first proposal is the routes by the configured metric.
@@ -69,6 +71,7 @@ __all__ = [
     "DelayModelChanged",
     "RelayAdded",
     "NodeMoved",
+    "Interference",
     "TopologyEvent",
     "Reconfiguration",
     "parse_event",
@@ -242,8 +245,28 @@ class NodeMoved(BaseModel):
     links: list[LinkSpec]
 
 
+class Interference(BaseModel):
+    """Interference on some channels (a TSCH network only, ``mac: tsch``): their reception
+    ratio is capped at ``prr`` for ``duration`` time units (``None``: to the end of the run),
+    on every link or only on links into ``receivers``. Routes do not change."""
+
+    model_config = _FROZEN
+    type: Literal["interference"] = "interference"
+    channels: tuple[int, ...] = Field(min_length=1, description="IEEE 802.15.4 channels hit")
+    prr: float = Field(ge=0, le=1, description="reception ratio left on those channels")
+    duration: float | None = Field(default=None, gt=0, description="time units; None: to the end")
+    receivers: tuple[str, ...] | None = Field(default=None, description="None: every link")
+
+    @model_validator(mode="after")
+    def _band(self) -> Interference:
+        for i, ch in enumerate(self.channels):
+            if not 11 <= ch <= 26:
+                raise ValueError(f"channels[{i}]: {ch} is not an IEEE 802.15.4 channel (11..26)")
+        return self
+
+
 TopologyEvent = Annotated[
-    NodeDown | NodeUp | LinkDegraded | DelayModelChanged | RelayAdded | NodeMoved,
+    NodeDown | NodeUp | LinkDegraded | DelayModelChanged | RelayAdded | NodeMoved | Interference,
     Field(discriminator="type"),
 ]
 """A reconfiguration event, chosen by its ``type`` field."""
@@ -497,6 +520,9 @@ class Topology:
             self._nodes = nodes
             for link in event.links:
                 self._add_link(link)
+        elif isinstance(event, Interference):
+            for node in event.receivers or ():
+                self._node(node, "receivers")
         elif isinstance(event, NodeMoved):
             spec = self._node(event.node, "node")
             others = {k: v for k, v in self._links.items() if event.node not in k}

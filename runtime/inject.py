@@ -114,6 +114,14 @@ def build_request(
         new = event.node if event.type == "relay_added" else None
         for link in getattr(event, "links", []) or []:
             named += [("links.a", link.a), ("links.b", link.b)]
+        named += [("receivers", r) for r in getattr(event, "receivers", None) or ()]
+        if event.type == "interference":
+            cfg = load_scenario(run_dir / SCENARIO_FILE).nodes[network]
+            if cfg.mac != "tsch":
+                raise ConfigError(
+                    f"event 'interference': network {network!r} has no channels (per-hop "
+                    "model); interference needs a TSCH network (mac: tsch)"
+                )
         for field, name in named:
             if name is not None and name != new and name not in nodes:
                 raise ConfigError(

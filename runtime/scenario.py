@@ -64,7 +64,10 @@ from core.registry import Kind, Registry
 from core.time import to_ticks
 from gateway.behaviour import NetworkBehaviour
 from gateway.energy import EnergyConfig
-from gateway.topology import Topology, TopologyConfig, TopologyEvent
+from gateway.topology import Interference, Topology, TopologyConfig, TopologyEvent
+from gateway.tsch.config import TschConfig
+from gateway.tsch.network import effective_links, link_quality_of, slot_ticks_of
+from gateway.tsch.schedule import check_cells
 from plants import registry
 from plants.behaviour import PlantBehaviour
 from runtime.overrides import Override, apply_overrides, parse_override
@@ -257,11 +260,21 @@ class ScheduledEvent(BaseModel):
 
 class GatewayNodeConfig(BaseModel):
     """A WSN gateway: the loops naming it have their sensor (and optionally actuator) paths
-    routed over its topology, with per-hop delays, retries and loss (``gateway/``)."""
+    routed over its topology, with per-hop delays, retries and loss (``gateway/``), or carried
+    by a TSCH network (``mac: tsch``: slotframes, cells, a central scheduler, channel hopping,
+    queues; ``gateway/tsch/``)."""
 
     model_config = _STRICT
 
     kind: Literal["gateway"]
+    mac: Literal["per_hop", "tsch"] = Field(
+        default="per_hop",
+        description="per_hop: each hop's delay drawn from its link's model; tsch: a TSCH "
+        "network run slot by slot (tsch:)",
+    )
+    tsch: TschConfig = Field(
+        default_factory=TschConfig, description="the TSCH network (mac: tsch)"
+    )
     topology: TopologyConfig
     events: list[ScheduledEvent] = Field(
         default_factory=list, description="reconfigurations applied at their times"
@@ -280,11 +293,40 @@ class GatewayNodeConfig(BaseModel):
         self.gateway_node()
         topology = Topology(self.topology)  # every event must apply, in time order
         for i in sorted(range(len(self.events)), key=lambda k: self.events[k].t):
+            event = self.events[i].event
+            if isinstance(event, Interference) and self.mac != "tsch":
+                raise ValueError(
+                    f"events[{i}].event: interference needs a TSCH network (mac: tsch); the "
+                    "per-hop models have no channels"
+                )
             try:
-                topology.apply(self.events[i].event)
+                topology.apply(event)
             except ValueError as err:
                 raise ValueError(f"events[{i}].event: {err}") from err
+        if self.mac == "tsch":
+            self._check_tsch()
         return self
+
+    def _check_tsch(self) -> None:
+        """The TSCH network must run: slot duration in whole ticks, positions for ``pathloss``,
+        a trace that reads, a written schedule without conflicts between known nodes."""
+        cfg = self.tsch
+        try:
+            slot_ticks_of(cfg, self.energy.seconds_per_unit)
+            quality = link_quality_of(cfg, self.topology, np.random.default_rng(0))
+            effective_links(cfg, self.topology, quality)
+        except ValueError as err:
+            raise ValueError(str(err)) from err
+        field = "tsch.schedule" if cfg.schedule != "auto" else "tsch.shared_cells"
+        cells = cfg.cells()
+        for i, cell in enumerate(cells):
+            for end in ("tx", "rx"):
+                if getattr(cell, end) not in self.topology.nodes:
+                    raise ValueError(
+                        f"{field}[{i}].{end}: unknown node {getattr(cell, end)!r} "
+                        f"(nodes: {sorted(self.topology.nodes)})"
+                    )
+        check_cells(cells, cfg.length, cfg.offsets, where=field)
 
     def gateway_node(self) -> str:
         """The topology's node of kind ``gateway``."""
@@ -971,15 +1013,24 @@ def _format_error(source: str, err: ValidationError, text: str | None = None) ->
     return "\n".join(lines)
 
 
-def parse_scenario(data: Any, *, source: str = "<scenario>", text: str | None = None) -> Scenario:
+def parse_scenario(
+    data: Any,
+    *,
+    source: str = "<scenario>",
+    text: str | None = None,
+    base_dir: str | Path | None = None,
+) -> Scenario:
     """Validate an already-parsed mapping; errors name ``source`` and the field.
 
     With ``text`` (the YAML ``data`` was read from), each error also names the field's line.
+    Relative file names in the scenario (a TSCH link trace) are taken from ``base_dir`` (the
+    scenario file's folder) and kept absolute.
     """
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
+    context = {"base_dir": str(base_dir)} if base_dir is not None else None
     try:
-        return Scenario.model_validate(data)
+        return Scenario.model_validate(data, context=context)
     except ValidationError as err:
         raise ConfigError(_format_error(source, err, text)) from err
 
@@ -1006,4 +1057,4 @@ def load_scenario(path: str | Path, *, overrides: Sequence[str | Override] = ())
     data = read_yaml(text, source=str(path))
     parsed = [o if isinstance(o, Override) else parse_override(o) for o in overrides]
     data = apply_overrides(data, parsed)
-    return parse_scenario(data, source=str(path), text=text)
+    return parse_scenario(data, source=str(path), text=text, base_dir=path.parent)

@@ -85,6 +85,13 @@ class WncscaBehaviour(Behaviour):
         )
 
     def _on_applied(self, env: RawEnvelope, msg: NetApplied) -> None:
+        if msg.event == "rates_refused":  # a TSCH manager's "cannot": said, periods unchanged
+            reason = f"{env.src}: rates refused: {msg.reason}"
+            self.log.warning("%s", reason)
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(subject="rates", network=env.src, verdict="reject", reasons=(reason,)),
+            )
         if msg.event == "no_alternative":
             d = self.core.on_no_alternative(env.src, msg.proposal)
             self.log.warning("%s", d.reasons[0])

@@ -33,6 +33,7 @@ from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
+from agents.wncsca.capacity import Manager, describe, read_capacity
 from agents.wncsca.chance import LoopLaw
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.decision import (
@@ -141,6 +142,8 @@ class Coordinator:
         self._relaxed: dict[str, float] | None = None
         self.relax_at: int | None = None
         self._strikes = {n: 0 for n in self.loops}
+        # TSCH gateways: their managers, as the last accepted proposal describes them
+        self.managers: dict[str, Manager] = {}
 
     @property
     def bounds(self) -> dict[str, DelayBound]:
@@ -178,6 +181,10 @@ class Coordinator:
         for n in missing:  # a loop of another gateway with no accepted configuration yet
             others[n] = 0.0
         paths = body.get("paths")
+        try:
+            capacity = read_capacity(body.get("tsch"))
+        except ValueError as err:
+            return self._refused(network, pid, f"tsch: {err}")
         link_paths: dict[str, Any] = {}
         if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
             link_paths = {
@@ -210,17 +217,39 @@ class Coordinator:
         if decision.verdict == "reject" or rejected:
             decision = _with_links(decision, links)
             return Negotiation(decision, network, links=links)
+        decision = _with_links(decision, links)
+        delays = {**self.delays, **{n: decision.delays[n] for n in self.carried[network]}}
+        manager = None
+        if capacity is not None and isinstance(body.get("paths"), Mapping):
+            manager = Manager(capacity, body["paths"])
+        result = None
+        if self.carried[network]:
+            weights = _weights(paths, self.loops)
+            result = risk if risk is not None else assign(self.model, delays, weights)
+            if manager is not None and result.feasible:
+                link_periods = {**self.link_periods}
+                for v in links:
+                    link_periods.update(v.periods)
+                schedule = manager.schedule(result.periods, link_periods)
+                if not schedule.feasible:  # the manager cannot: like a violated limit
+                    reason = describe(result.periods, schedule)
+                    rejected_ = replace(
+                        decision,
+                        verdict="reject",
+                        reasons=(*decision.reasons, reason),
+                        offending=manager.offending(schedule),
+                    )
+                    return Negotiation(rejected_, network, links=links)
         self.link_delays.update(link_delays)
         for v in links:
             self.link_periods.update(v.periods)
-        decision = _with_links(decision, links)
-        self.delays.update({n: decision.delays[n] for n in self.carried[network]})
+        self.delays = delays
         self.accepted[network] = pid
         self.proposal = pid
-        if not self.carried[network]:  # a network carrying links only: no periods to negotiate
+        if manager is not None:
+            self.managers[network] = manager
+        if result is None:  # a network carrying links only: no periods to negotiate
             return Negotiation(decision, network, links=links)
-        weights = _weights(paths, self.loops)
-        result = risk if risk is not None else assign(self.model, self.delays, weights)
         if result.feasible:
             self.control_periods = dict(result.periods)
             self._relaxed = None  # a new negotiation ends any tightened transient
@@ -309,7 +338,22 @@ class Coordinator:
                 None, "refuse", (f"mode refused: unknown mode {mode!r} (modes: {MODES})",)
             )
         previous, self.mode = self.mode, mode
+        lacking = self.uncarried()
+        if lacking:
+            self.mode = previous
+            return Decision(None, "refuse", (f"mode {mode} refused: {lacking}",))
         return Decision(None, "accept", (f"mode {previous} -> {mode}",))
+
+    def uncarried(self) -> str | None:
+        """Why a TSCH gateway's manager cannot carry the current mode's rates (``None``: every
+        one can)."""
+        periods = self.rates()["periods"]
+        for network, manager in sorted(self.managers.items()):
+            mine = {n: p for n, p in periods.items() if n in self.carried[network]}
+            schedule = manager.schedule(mine, self.link_periods)
+            if not schedule.feasible:
+                return f"{network}: {describe(mine, schedule)}"
+        return None
 
     def on_setpoint(self, loop: str, body: Any, now: int) -> tuple[Decision, float | None, int]:
         """A set-point request (raw ``ops/setpoint/<loop>`` body) at ``now`` (ticks): returns the
