@@ -51,6 +51,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/wncsca_figures.py
 	$(BIN)/python bench/wncsca_methods.py --quick
 	$(BIN)/python bench/wncsca_latency.py
+	$(BIN)/python bench/tsch_slotframes.py
 
 clean:
 	rm -rf $(VENV) $(LOCK_VENV) runs site

@@ -49,6 +49,8 @@ class LoopRecord:
         0  # samples the network lost (the rest of sent - delivered was in flight at the end)
     )
     lost_moves: int = 0  # control moves lost on the actuator path
+    # a TSCH network: "<direction>.<reason>" -> packets it dropped (queue_full, ...)
+    lost_by_reason: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -179,7 +181,7 @@ def _delays(t: list[int], t_sent: list[int]) -> dict[str, float | None]:
 def path_stats(rec: RunRecord) -> dict[str, dict[str, Any]]:
     """Per loop sensor path: hops, delivered delays (mean, p95, max; time units), sent, lost.
     An actuator-only loop has no sensor path: no delays, nothing sent."""
-    out = {}
+    out: dict[str, dict[str, Any]] = {}
     for name, loop in sorted(rec.loops.items()):
         sensed = loop.sensor is not None
         delivered = len(loop.t) if sensed else 0
@@ -191,6 +193,8 @@ def path_stats(rec: RunRecord) -> dict[str, dict[str, Any]]:
             "in_flight_at_end": loop.sent - delivered - loop.lost,
             "moves_lost": loop.lost_moves,
         }
+        if loop.lost_by_reason:  # a TSCH network says why
+            out[name]["lost_by_reason"] = dict(sorted(loop.lost_by_reason.items()))
     return out
 
 

@@ -89,6 +89,7 @@ class NetworkBehaviour(Behaviour):
         self._wakes: set[int] = set()  # a TSCH network's pending wake-ups (ends of busy slots)
         self._last_sample: dict[str, int] = {}  # loop -> its last sample's time, ticks
         self._battery_check: int | None = None
+        self._battery_version: int | None = None  # the schedule the last prediction was for
         if self.carrier.topology is not None:
             self.subscribe(keys.network_events(self.name), NetworkEvent, self._on_injected)
             self.at(0, self._announce("initial", "initial", None))
@@ -329,9 +330,15 @@ class NetworkBehaviour(Behaviour):
         return wake
 
     def _plan_battery_check(self) -> None:
+        """Plan a battery check for when the next battery is due to run out, computed again
+        whenever the schedule changes (a new segment of the MAC) or a check has fired."""
         tsch = self.carrier.tsch
         if tsch is None or self._battery_check is not None:
             return
+        version = len(tsch.mac.segments)
+        if version == self._battery_version:
+            return
+        self._battery_version = version
         due = tsch.depletion(self.now)
         if due is None or due[0] > self.spec.end:
             return
@@ -343,6 +350,7 @@ class NetworkBehaviour(Behaviour):
         """A battery due to run out: the nodes whose charge is spent go down (as ``node_down``:
         the gateway reroutes and proposes); otherwise the check is planned again."""
         self._battery_check = None
+        self._battery_version = None
         tsch = self.carrier.tsch
         assert tsch is not None
         self.carrier.advance(self.now)

@@ -243,9 +243,7 @@ class PathCarrier:
             self._reschedule(t)
         return self.configuration(t)
 
-    def set_period(
-        self, loop: str, period: float, t: int, next_sample: int | None = None
-    ) -> None:
+    def set_period(self, loop: str, period: float, t: int, next_sample: int | None = None) -> None:
         """Loop ``loop``'s sensor samples every ``period`` (time units) from ``t``: for the
         projected lifetimes (and a TSCH network's schedule: its chains start at the slot of
         ``next_sample``, the loop's next sample in ticks, default ``t``). Idle listening is

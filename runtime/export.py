@@ -99,7 +99,7 @@ def tables(rec: RunRecord, summary: dict[str, Any]) -> dict[str, Table]:
         out[f"plant_{name}"] = plant_table(plant)
     paths = summary["network"]["paths"]
     if paths:
-        fields = list(next(iter(paths.values())))
+        fields = [f for f in next(iter(paths.values())) if f != "lost_by_reason"]
         rows = [(loop, *(p.get(f) for f in fields)) for loop, p in paths.items()]
         out["network_paths"] = (("loop", *fields), rows)
     nodes = summary["network"]["nodes"]

@@ -182,7 +182,7 @@ class RecordBuilder:
 
     def _applied(self, t: int, order: int, body: Body) -> None:
         applied = {"t": t, **body()}
-        if applied["event"] in ("rates", "no_alternative"):
+        if applied["event"] in ("rates", "rates_refused", "no_alternative"):
             self.rec.wncsca.setdefault("applied", []).append(applied)
         else:
             self.rec.configurations.append(applied)
@@ -195,6 +195,9 @@ class RecordBuilder:
                 rec.links[loss["loop"]].lost += 1
         elif loss["loop"] in rec.loops:
             lost_loop = rec.loops[loss["loop"]]
+            if loss.get("reason"):
+                why = f"{loss['direction']}.{loss['reason']}"
+                lost_loop.lost_by_reason[why] = lost_loop.lost_by_reason.get(why, 0) + 1
             if loss["direction"] == "sensor":
                 lost_loop.lost += 1
             else:

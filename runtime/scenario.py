@@ -272,9 +272,7 @@ class GatewayNodeConfig(BaseModel):
         description="per_hop: each hop's delay drawn from its link's model; tsch: a TSCH "
         "network run slot by slot (tsch:)",
     )
-    tsch: TschConfig = Field(
-        default_factory=TschConfig, description="the TSCH network (mac: tsch)"
-    )
+    tsch: TschConfig = Field(default_factory=TschConfig, description="the TSCH network (mac: tsch)")
     topology: TopologyConfig
     events: list[ScheduledEvent] = Field(
         default_factory=list, description="reconfigurations applied at their times"

@@ -43,9 +43,7 @@ class Manager:
             nodes = entry.get("route") if isinstance(entry, Mapping) else None
             self.routes[str(name)] = tuple(nodes) if nodes and len(nodes) >= 2 else None
 
-    def schedule(
-        self, periods: Mapping[str, float], link_periods: Mapping[str, float]
-    ) -> Schedule:
+    def schedule(self, periods: Mapping[str, float], link_periods: Mapping[str, float]) -> Schedule:
         """The schedule for loops sampled at ``periods`` and links sent at ``link_periods``
         (time units): a loop's sensor and actuator paths at its period."""
         ticks: dict[str, int] = {}
@@ -81,4 +79,3 @@ def describe(periods: Mapping[str, float], schedule: Schedule) -> str:
     18 cells"``."""
     per = ", ".join(f"{n} {p:g}" for n, p in sorted(periods.items()))
     return f"the manager cannot carry periods {per}: {schedule.describe_lack()}"
-

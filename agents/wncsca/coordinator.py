@@ -50,6 +50,7 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.steps import judge_step, test_length
 from core.time import to_ticks
+from gateway.carrier import CarrierSpec, PathCarrier
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
@@ -470,6 +471,8 @@ class Coordinator:
         """Projected network lifetime (the first battery node to run out) under the control
         periods against the benchmark periods, over the proposal's routes."""
         cfg = self.scenario.nodes[network]
+        if getattr(cfg, "mac", "per_hop") == "tsch":
+            return self._tsch_energy(network, paths)
         topology = Topology(cfg.topology)
         routes = {}
         try:
@@ -486,6 +489,45 @@ class Coordinator:
             per = {f"{n}.sensor": periods[n] for n in self.carried[network]}
             nodes = projected_lifetime(topology, routes, per, cfg.energy)
             return min(e.lifetime_s for e in nodes.values()) / 3600.0
+
+        assigned, bench = lifetime(self.control_periods), lifetime(self.benchmark)
+        finite = math.isfinite(assigned) and math.isfinite(bench) and bench > 0
+        return {
+            "lifetime_h_assigned": assigned if math.isfinite(assigned) else None,
+            "lifetime_h_benchmark": bench if math.isfinite(bench) else None,
+            "ratio": assigned / bench if finite else None,
+        }
+
+    def _tsch_energy(self, network: str, paths: Any) -> dict[str, Any] | None:
+        """:meth:`energy` over a TSCH network: the first battery to run out under its manager's
+        schedule for the proposal's routes (:meth:`gateway.tsch.network.TschNetwork.lifetimes_h`),
+        the loops' sensor and actuator paths at their periods."""
+        sc = self.scenario
+        carrier = PathCarrier(
+            CarrierSpec(
+                node=network,
+                seed=sc.seed,
+                loops={n: lp for n, lp in sorted(sc.loops.items()) if lp.network == network},
+                links={n: lk for n, lk in sorted(sc.links.items()) if lk.network == network},
+                gateway=sc.nodes[network],
+            )
+        )
+        assert carrier.tsch is not None
+        try:
+            routes = {str(p): (tuple(e.get("route") or ()) or None) for p, e in paths.items()}
+        except AttributeError:
+            return None
+
+        def lifetime(periods: Mapping[str, float]) -> float:
+            ticks = {}
+            for path in routes:
+                name, _, direction = path.rpartition(".")
+                period = self.link_periods.get(name) if direction == "link" else periods.get(name)
+                if period is not None:
+                    ticks[path] = to_ticks(period)
+            assert carrier.tsch is not None
+            hours = carrier.tsch.lifetimes_h(routes, ticks)
+            return min((h for h in hours.values() if h is not None), default=math.inf)
 
         assigned, bench = lifetime(self.control_periods), lifetime(self.benchmark)
         finite = math.isfinite(assigned) and math.isfinite(bench) and bench > 0

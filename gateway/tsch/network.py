@@ -349,23 +349,47 @@ class TschNetwork:
     ) -> list[tuple[int, int | None]]:
         """``n`` probes sent one at a time along ``route`` through a copy of the MAC from ``t``,
         each at the path's next sending instant after the previous one is through (as its
-        samples are sent), or at a uniform instant for a path with no period:
-        ``(t_sent, t_delivered or None)`` in ticks."""
+        samples are sent), or at a uniform instant for a path with no period, while the other
+        paths send their packets at their own instants (the cross traffic the probe queues
+        behind): ``(t_sent, t_delivered or None)`` in ticks."""
         twin = self.mac.clone(rng)
         twin.advance(t)
+        others = {
+            p: (self.granted(self.periods[p]), r)
+            for p, r in sorted(self.routes.items())
+            if p != path and r is not None and p in self.periods
+        }
+        upcoming = {p: self._instant(p, t, rng) for p in others}
+        serial = 0
+
+        def run_until(until: int) -> list[Outcome]:
+            """Advance the copy to ``until``, sending the other paths' packets on the way."""
+            nonlocal serial
+            out: list[Outcome] = []
+            while True:
+                due = min(upcoming.values(), default=None)
+                if due is None or due > until:
+                    break
+                out += twin.advance(due)
+                for p in [p for p, at in upcoming.items() if at == due]:
+                    serial += 1
+                    twin.submit(("cross", serial), others[p][1], due)
+                    upcoming[p] = due + others[p][0]
+            out += twin.advance(until)
+            return out
+
         out: list[tuple[int, int | None]] = []
         clock = t
+        frames = max((c.every for c in twin.schedule.cells), default=1) * _PROBE_FRAMES
         for i in range(n):
             t0 = self._instant(path, clock, rng)
-            twin.advance(t0)
+            run_until(t0)
             early = twin.submit(("probe", i), route, t0)
             if early is not None:
                 out.append((t0, None))
                 clock = t0 + 1
                 continue
-            limit = t0 + _PROBE_FRAMES * self.frame_ticks * max(
-                c.every for c in twin.schedule.cells
-            )
+            limit = t0 + frames * self.frame_ticks
             done: int | None = None
             lost = False
             while done is None and not lost:
@@ -373,7 +397,7 @@ class TschNetwork:
                 if wake is None or wake > limit:
                     lost = True
                     break
-                for o in twin.advance(wake):
+                for o in run_until(wake):
                     if o.id == ("probe", i):
                         if o.delivered:
                             done = o.t
@@ -437,11 +461,20 @@ class TschNetwork:
         counts = self.mac.slot_counts(nodes, t)
         return {n: charge_uC(self.radio, counts[n], self.slot_s) / 3.6e6 for n in nodes}
 
-    def frame_charge_uC(self, t: int) -> dict[str, float]:
-        """Each node's expected charge per slotframe under the schedule and the paths' periods:
-        its listening cells, the packets it receives and the attempts it makes (``1/p`` per
-        packet per hop, at most ``max_retries + 1``), sleep otherwise."""
-        sched = self.mac.schedule
+    def frame_charge_uC(
+        self,
+        t: int,
+        schedule: Schedule | None = None,
+        routes: Mapping[str, Sequence[str] | None] | None = None,
+        periods: Mapping[str, int] | None = None,
+    ) -> dict[str, float]:
+        """Each node's expected charge per slotframe under the schedule and the paths' periods
+        (default: those in force): its listening cells, the packets it receives and the
+        attempts it makes (``1/p`` per packet per hop, at most ``max_retries + 1``), sleep
+        otherwise."""
+        sched = self.mac.schedule if schedule is None else schedule
+        routes = self.routes if routes is None else routes
+        periods = self.periods if periods is None else periods
         length = sched.length
         radio, slot_s = self.radio, self.slot_s
         listens: dict[str, float] = {}
@@ -451,11 +484,11 @@ class TschNetwork:
         tx_cost: dict[str, float] = {}
         tx_slots: dict[str, float] = {}
         r = self.config.max_retries
-        for path, route in sorted(self.routes.items()):
-            period = self.periods.get(path)
+        for path, route in sorted(routes.items()):
+            period = periods.get(path)
             if route is None or period is None:
                 continue
-            per_frame = self.frame_ticks / period
+            per_frame = self.frame_ticks / self.granted(period)
             for a, b in zip(route[:-1], route[1:], strict=True):
                 p = self.mean_pdr(a, b, t)
                 attempts = (1 - (1 - p) ** (r + 1)) / p if p > 0 else r + 1.0
@@ -477,6 +510,22 @@ class TschNetwork:
                 + (listen - rx) * radio.charge_uC("idle", slot_s)
                 + max(length - busy, 0.0) * radio.charge_uC("sleep", slot_s)
             )
+        return out
+
+    def lifetimes_h(
+        self, routes: Mapping[str, Sequence[str] | None], periods: Mapping[str, int]
+    ) -> dict[str, float | None]:
+        """Each battery node's lifetime (hours) from a full battery under the manager's schedule
+        for ``routes`` and ``periods`` (ticks), not applied (``None``: mains powered or spending
+        nothing)."""
+        schedule = self.plan(routes, periods)
+        rate = self.frame_charge_uC(0, schedule, routes, periods)
+        frame_s = self.frame_ticks / TICKS_PER_UNIT * self.seconds_per_unit
+        out: dict[str, float | None] = {}
+        for node in sorted(self.topology.nodes):
+            cap = self.capacity_mAh(node)
+            q = rate[node]
+            out[node] = None if cap is None or q <= 0 else cap * 3.6e6 / q * frame_s / 3600.0
         return out
 
     def energy(self, t: int) -> dict[str, dict[str, float | None]]:
@@ -534,4 +583,3 @@ class TschNetwork:
             if cap is not None and self.topology.is_up(node) and spent[node] >= cap:
                 out.append(node)
         return out
-

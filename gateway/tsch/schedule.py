@@ -15,10 +15,12 @@ every flow (a path's packets: a route and a period in slots) chains of cells alo
 time order: for each hop, one cell and ``retry_cells`` more right after it toward the same
 neighbour (retransmissions), then the next hop's cells, so that a packet generated at the chain's
 first slot crosses all hops in the chain's span when capacity allows. A flow of period ``P``
-slots (granted by :func:`grant`: a divisor or a multiple of ``length``) gets
-``m = length / P`` chains per slotframe starting at its packets' slots ``offset + j P``, or,
-when ``P >= length``, one chain every ``P / length`` slotframes starting at slot ``offset``: a
-packet generated on time finds its chain's first cell at once. A cell goes to the first slot
+slots gets one chain per packet slot ``offset + k P`` of the hyperframe of ``lcm(P, length)``
+slots, each of its cells active every ``lcm(P, length) / length`` slotframes: a packet generated
+on time finds its chain's first cell at once, and the cells per slotframe are
+``hops (1 + retry_cells) length / P``. The manager asks for periods granted by :func:`grant`
+(``P`` divides ``length``: ``length / P`` chains per slotframe; ``length`` divides ``P``: one
+chain every ``P / length`` slotframes). A cell goes to the first slot
 at or after the previous cell in which neither end is busy (a node has one radio: at most one
 cell per slot, whatever the channel) and a channel offset is free; when no slot of the slotframe
 can take it, the link **lacks** that cell (:attr:`Schedule.lacking`): the manager's "cannot".
@@ -188,12 +190,9 @@ def build_schedule(
     for flow in sorted(flows, key=lambda f: f.name):
         hops = list(zip(flow.route[:-1], flow.route[1:], strict=True))
         offset = flow.offset % flow.period
-        if flow.period >= length:
-            every, starts = max(1, flow.period // length), [offset]
-        else:
-            every = 1
-            m = math.ceil(length / flow.period)
-            starts = sorted({(offset + round(j * length / m)) % length for j in range(m)})
+        hyper = math.lcm(flow.period, length)  # the chains repeat every hyper slots
+        every = hyper // length
+        starts = [offset + k * flow.period for k in range(hyper // flow.period)]
         for start in starts:
             position = start  # absolute slot from the chain's slotframe start
             for tx, rx in hops:
@@ -287,9 +286,11 @@ def links_of(cells: Iterable[Cell]) -> Mapping[tuple[str, str], list[Cell]]:
 
 def grant(period: int, length: int) -> int:
     """The period (slots) the manager gives a flow that asks for ``period``: the longest at or
-    below it that the slotframe repeats exactly, a multiple of ``length`` or a divisor of it,
-    so that the flow's packets find their chain at the same place every time (as a WirelessHART
-    manager grants publish periods from its superframes)."""
+    below it that the slotframe repeats exactly, a multiple of ``length`` or a divisor of it
+    (as a WirelessHART manager grants publish periods from its superframes). Periods that are
+    neither would need cells of several repetitions in one slot, which a schedule of one
+    slotframe length cannot hold without conflicts; a slotframe length with many divisors
+    (120, 240) keeps the granted periods close to the asked ones."""
     if period < 1:
         raise ValueError(f"a period is at least one slot, got {period}")
     if period >= length:

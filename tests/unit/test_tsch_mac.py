@@ -107,7 +107,7 @@ def _exact_shared_throughput(k: int, min_be: int, max_be: int) -> float:
         senders = [i for i, (_, c) in enumerate(nodes) if c == 0]
         single[j] = len(senders) == 1
         options = []  # per node: list of (next state index, probability)
-        for i, (be, c) in enumerate(nodes):
+        for be, c in nodes:
             if c > 0:
                 options.append([(index[(be, c - 1)], 1.0)])
             elif len(senders) == 1:
