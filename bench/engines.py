@@ -4,6 +4,12 @@ Run phase (first round to the last) is reported apart from start-up (router, pro
 start, imports, until every participant is alive). Also the direct engine's throughput in runs per
 second, which is what the coordination agent pays per candidate sampling period.
 
+For the bus engines also the cost of one clock round (run phase over the rounds the history
+holds; with sparse rounds a node is ticked only when it has a timer due or a message to collect)
+and the floor it is compared with: one Zenoh round trip client -> router -> client -> router ->
+client on loopback (a ping answered by a second client), measured in the same run (median of
+300).
+
 With ``--against REV`` it first times the direct engine here and at git revision ``REV``
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
 ratio: the before-and-after figure of a change to the engine.
@@ -14,13 +20,16 @@ ratio: the before-and-after figure of a change to the engine.
 from __future__ import annotations
 
 import argparse
+import sqlite3
 import statistics
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 from against import Comparison
 
+from kernel.bus import open_client, open_router
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
@@ -30,6 +39,7 @@ SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.
 # CPU time (not wall time: another process's load is not ours), fastest of 15 batches of 20
 DIRECT_MS = """
 import json, time
+from kernel.bus import open_client, open_router
 from runtime.direct import simulate
 from runtime.scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
@@ -56,6 +66,45 @@ def against(rev: str, rounds: int) -> None:
     print(f"this tree / {rev}: {min(ours) / min(theirs):.2f} (fastest against fastest)\n")
 
 
+def round_trip_ms(n: int = 300) -> float:
+    """Median wall time of one ping answered by another client through an embedded router."""
+    router, locators = open_router("tcp/127.0.0.1:0")
+    endpoint = next(loc for loc in locators if loc.startswith("tcp/"))
+    a, b = open_client(endpoint), open_client(endpoint)
+    got = threading.Event()
+    subs = [
+        b.declare_subscriber("bench/ping", lambda s: b.put("bench/pong", s.payload.to_bytes())),
+        a.declare_subscriber("bench/pong", lambda s: got.set()),
+    ]
+    times = []
+    try:
+        time.sleep(0.5)  # let the subscriptions reach the router
+        for _ in range(n + 20):
+            got.clear()
+            t0 = time.perf_counter()
+            a.put("bench/ping", b"x")
+            if not got.wait(2.0):
+                continue
+            times.append(time.perf_counter() - t0)
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        a.close()
+        b.close()
+        router.close()
+    return statistics.median(times[20:]) * 1e3
+
+
+def rounds_of(run_dir: Path) -> int:
+    """The clock rounds of a bus run (its history's ticks)."""
+    db = sqlite3.connect(run_dir / "history.sqlite")
+    try:
+        (n,) = db.execute("SELECT COUNT(*) FROM ticks").fetchone()
+    finally:
+        db.close()
+    return int(n)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -77,6 +126,7 @@ def main() -> None:
     )
 
     rows = {}
+    rounds: dict[str, int] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for engine in ("direct", "threads", "processes"):
             walls, runs, starts = [], [], []
@@ -88,6 +138,8 @@ def main() -> None:
                 walls.append(s["wall_s"])
                 runs.append(s["phases_s"].get("run", s["wall_s"]))
                 starts.append(s["phases_s"].get("startup", 0.0))
+                if engine != "direct":
+                    rounds[engine] = rounds_of(Path(tmp) / f"{engine}{i}")
             rows[engine] = (
                 statistics.median(walls),
                 statistics.median(runs),
@@ -103,6 +155,13 @@ def main() -> None:
             f"| {run / base_run:.0f}x |"
         )
     print(f"\nmedians of {args.repeat} launches each (wncs run incl. summary and plots)")
+    floor = round_trip_ms()
+    print(f"\nZenoh round trip on loopback (client -> router -> client and back): {floor:.3f} ms")
+    print("| engine | rounds | run ms per round | per round / round trip |")
+    print("|---|---:|---:|---:|")
+    for engine in ("threads", "processes"):
+        per_round = rows[engine][1] / rounds[engine] * 1e3
+        print(f"| {engine} | {rounds[engine]} | {per_round:.3f} | {per_round / floor:.1f}x |")
 
 
 if __name__ == "__main__":

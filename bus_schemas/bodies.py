@@ -441,6 +441,11 @@ class Tick(BaseModel):
     expected: dict[str, int] = Field(
         description="run-relative key -> messages published on it in the previous round"
     )
+    participants: tuple[str, ...] | None = Field(
+        default=None,
+        description="the nodes that take part in this round (sparse rounds: a timer due at t, "
+        "or a message of the previous round to collect); None: every participant",
+    )
 
 
 class Done(BaseModel):
@@ -457,6 +462,11 @@ class Done(BaseModel):
     dropped_invalid: dict[str, int] = Field(
         default_factory=dict, description="run-relative key -> messages dropped so far"
     )
+    listens: tuple[str, ...] | None = Field(
+        default=None,
+        description="round 0: the key expressions the node subscribes to (run-relative), for "
+        "the clock to know who takes part in a round",
+    )
 
 
 class Stop(BaseModel):
@@ -471,6 +481,10 @@ class Stop(BaseModel):
     dropped_invalid: dict[str, int] = Field(default_factory=dict)
     dropped_nodes: dict[str, int] = Field(
         default_factory=dict, description="nodes dropped from the run -> round they left in"
+    )
+    rounds_taken: dict[str, int] = Field(
+        default_factory=dict,
+        description="node -> rounds it took part in (sparse rounds: the others it sat out)",
     )
 
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Protocol
 
-from bus_schemas import Tick
+from bus_schemas import Tick, keys
 from core.errors import ProtocolError
 from core.time import to_units
 
-__all__ = ["RoundPlanner", "RoundReport", "merge_dropped"]
+__all__ = ["RoundPlanner", "RoundReport", "Participation", "merge_dropped"]
 
 
 class RoundReport(Protocol):
@@ -99,3 +99,56 @@ class RoundPlanner:
             self.microsteps = 0
         self.round += 1
         self.expected = published
+
+
+class Participation:
+    """Who takes part in a round (sparse rounds, DESIGN section 3): a participant whose timer is
+    due at the round's time, or one subscribed to a key on which the previous round published.
+    The others would change nothing in it (:meth:`core.behaviour.Behaviour.idle_at`, which lets
+    the direct engine skip the same rounds), so the clock does not tick them and waits for no
+    ``Done`` from them; their last ``next_time`` stands.
+
+    Parameters
+    ----------
+    participants : iterable of str
+        Every participant of the run.
+    """
+
+    def __init__(self, participants: Iterable[str]) -> None:
+        self.participants = frozenset(participants)
+        self.listens: dict[str, tuple[str, ...]] = {}
+        self.next_times: dict[str, int | None] = {n: None for n in self.participants}
+        self._routes: dict[str, frozenset[str]] = {}
+
+    def learn(self, node: str, next_time: int | None, listens: Iterable[str] | None) -> None:
+        """A participant's answer: its next timer and (in round 0) its subscriptions."""
+        self.next_times[node] = next_time
+        if listens is not None:
+            self.listens[node] = tuple(listens)
+            self._routes.clear()
+
+    def listeners(self, key: str) -> frozenset[str]:
+        """The participants subscribed to concrete key ``key`` (unknown ones count as listening)."""
+        hit = self._routes.get(key)
+        if hit is None:
+            hit = frozenset(
+                n
+                for n in self.participants
+                if n not in self.listens or any(keys.intersects(p, key) for p in self.listens[n])
+            )
+            self._routes[key] = hit
+        return hit
+
+    def of(self, t: int, expected: Mapping[str, int]) -> frozenset[str]:
+        """Who takes part in a round at ``t`` announcing ``expected``."""
+        who = {n for n, nt in self.next_times.items() if nt == t}
+        for key, n in expected.items():
+            if n > 0:
+                who |= self.listeners(key)
+        return frozenset(who) & self.participants
+
+    def drop(self, node: str) -> None:
+        """A participant left the run (dropped by the clock)."""
+        self.participants = self.participants - {node}
+        self.next_times.pop(node, None)
+        self._routes.clear()

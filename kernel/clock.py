@@ -21,7 +21,7 @@ from pydantic import BaseModel
 from bus_schemas import Done, InjectRequest, Stop, Tick, codec, keys
 from bus_schemas.errors import SchemaError
 from core.errors import NodeFault, ProtocolError
-from core.rounds import RoundPlanner, merge_dropped
+from core.rounds import Participation, RoundPlanner, merge_dropped
 from core.time import TICKS_PER_UNIT, to_units
 
 __all__ = ["ClockSpec", "Interpreter", "RoundPlanner", "Pacer", "ClockRunner"]
@@ -95,6 +95,8 @@ class ClockRunner:
         self.interpret = interpret
         self.participants = spec.participants
         self.planner = RoundPlanner(self.participants, spec.end, max_microsteps=spec.max_microsteps)
+        self.participation = Participation(self.participants)
+        self.ticked: dict[str, int] = {}  # node -> rounds it took part in (sparse rounds)
         self.pacer = Pacer(realtime) if realtime else None
         self._queue: queue.Queue[tuple[str, str, bytes | zenoh.SampleKind]] = queue.Queue()
         self._alive: set[str] = set()
@@ -182,6 +184,7 @@ class ClockRunner:
             log.warning("node %r left during %s; dropped, the run carries on", name, where)
             self.participants = self.participants - {name}
             self.planner.participants = self.participants
+            self.participation.drop(name)
             self.dropped_nodes.append(
                 {"node": name, "round": self.planner.round, "t": self.planner.t}
             )
@@ -225,6 +228,7 @@ class ClockRunner:
             t=self.planner.t,
             dropped_invalid=merge_dropped(self.dropped_invalid.values()),
             dropped_nodes={d["node"]: d["round"] for d in self.dropped_nodes},
+            rounds_taken=dict(sorted(self.ticked.items())),
         )
 
     def _next(self, timeout: float) -> tuple[str, str, bytes | zenoh.SampleKind] | None:
@@ -252,17 +256,30 @@ class ClockRunner:
             self.pacer.start = time.monotonic()
 
     def _rounds(self) -> None:
+        """Run the rounds. Round 0 ticks every participant (their ``Done`` says what they
+        subscribe to); later rounds only those with a timer due or a message to collect
+        (:class:`~core.rounds.Participation`); liveliness still watches everyone."""
         timeout = self.spec.round_timeout_s
         planner = self.planner
         while True:
             tick = self._stamp_injections(planner.tick())
+            if tick.round == 0:
+                who = self.participants
+            else:
+                who = self.participation.of(tick.t, tick.expected) & self.participants
+                tick = Tick(
+                    round=tick.round,
+                    t=tick.t,
+                    expected=tick.expected,
+                    participants=tuple(sorted(who)),
+                )
             self._publish(keys.tick(), tick)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
-            while not self.participants <= set(dones):
+            while not (who & self.participants) <= set(dones):
                 item = self._next(deadline - time.monotonic())
                 if item is None:
-                    silent = sorted(self.participants - set(dones))
+                    silent = sorted((who & self.participants) - set(dones))
                     raise NodeFault(
                         f"node(s) {silent} did not answer round {tick.round} "
                         f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
@@ -282,15 +299,25 @@ class ClockRunner:
                 except SchemaError as err:
                     log.warning("clock: dropping invalid Done on %s: %s", key, err)
                     continue
-                if done.node not in self.participants or env.src != done.node:
-                    log.warning("clock: Done from unknown node %r ignored", done.node)
+                if done.node not in who or env.src != done.node:
+                    log.warning("clock: Done from %r, not ticked in this round, ignored", done.node)
                     continue
                 if done.round != tick.round:
                     continue
                 dones[done.node] = done
                 self.dropped_invalid[done.node] = done.dropped_invalid
             t_before = planner.t
-            planner.advance({n: d for n, d in dones.items() if n in self.participants})
+            published: dict[str, int] = {}
+            for node, done in sorted(dones.items()):
+                if node not in self.participants:
+                    continue
+                self.participation.learn(node, done.next_time, done.listens)
+                self.ticked[node] = self.ticked.get(node, 0) + 1
+                for key, n in done.published.items():
+                    published[key] = published.get(key, 0) + n
+            planner.advance_with(
+                published, {n: self.participation.next_times.get(n) for n in self.participants}
+            )
             if planner.finished:
                 return
             if self.pacer is not None and planner.t > t_before:

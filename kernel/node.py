@@ -82,6 +82,7 @@ class BusNode:
         self._timeout = ctx.round_timeout_s
         self._backlog: list[tuple[str, str, bytes]] = []
         self._declared: list[Any] = []
+        self._last_tick = -1  # every tick counts, the rounds this node sat out too
 
     @property
     def round(self) -> int:
@@ -168,8 +169,12 @@ class BusNode:
             )
 
     def _round_(self, tick: Tick) -> None:
-        if tick.round != self.round + 1 and self.round >= 0:
-            raise ProtocolError(f"{self.name}: tick {tick.round} after round {self.round}")
+        if tick.round != self._last_tick + 1:
+            raise ProtocolError(f"{self.name}: tick {tick.round} after round {self._last_tick}")
+        self._last_tick = tick.round
+        if tick.participants is not None and self.name not in tick.participants:
+            self.on_tick(tick)  # sparse rounds: nothing to collect, no timer due, no Done
+            return
         self.behaviour.begin_round(tick.round, tick.t)
         self.on_tick(tick)
         inbox = self._collect(tick)
@@ -191,6 +196,7 @@ class BusNode:
                 published=dict(counts),
                 next_time=next_time,
                 dropped_invalid=dict(self.dropped_invalid),
+                listens=tuple(self.behaviour.patterns) if tick.round == 0 else None,
             ),
         )
 
@@ -228,8 +234,9 @@ class BusNode:
                 raise SchemaError(f"unknown source {env.src!r}")
             if (env.src, env.seq) in self._seen:
                 raise SchemaError(f"duplicate message {env.src}#{env.seq}")
-            if env.round < self.round - 1 or (env.round == self.round - 1 and self._collected):
-                raise SchemaError(f"stale message of round {env.round} in round {self.round}")
+            now = self._last_tick
+            if env.round < now - 1 or (env.round == now - 1 and self._collected):
+                raise SchemaError(f"stale message of round {env.round} in round {now}")
         except SchemaError as err:
             self._reject(rel, str(err))
             return

@@ -29,8 +29,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from core.record import LoopRecord, PlantRecord, RunRecord, summarize
 from core.time import to_units
 from runtime.report import load_run
@@ -120,6 +118,8 @@ def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]])
 
 
 def _write_parquet(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+    import pandas as pd  # noqa: PLC0415 - heavy, only for Parquet: kept out of node processes
+
     pd.DataFrame(list(rows), columns=list(header)).to_parquet(path, index=False)
     return path
 

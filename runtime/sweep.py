@@ -29,8 +29,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-import pandas as pd
-
 from core.errors import ConfigError
 from core.record import summarize
 from runtime.direct import simulate
@@ -249,6 +247,8 @@ def sweep(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _write_csv(rows, out / SWEEP_CSV)
+    import pandas as pd  # noqa: PLC0415 - heavy, only for Parquet: kept out of node processes
+
     pd.DataFrame(rows).to_parquet(out / SWEEP_PARQUET, index=False)
     _write_plot(axes, rows, out / SWEEP_PNG, title=Path(scenario).stem)
     return rows

@@ -55,7 +55,7 @@ SCENARIO_MODULES = {  # the schema; each node's typed spec; reading a file with 
     "runtime.yaml_positions",
     "runtime.overrides",
 }
-LAZY_ALLOWED = ("matplotlib",)  # optional heavy imports may sit inside functions
+LAZY_ALLOWED = ("matplotlib", "pandas")  # optional heavy imports may sit inside functions
 
 # What the foundation refit (issue 13) has not cut yet, as ``module -> imported``: each entry is
 # a known violation, listed so the rest is enforced today. The list may only shrink

@@ -1,12 +1,18 @@
-"""The clock's round logic (DESIGN section 3) and real-time pacer, without a bus."""
+"""The clock's round logic (DESIGN section 3), sparse rounds and the real-time pacer."""
 
 from __future__ import annotations
+
+import json
+import sqlite3
 
 import pytest
 
 from bus_schemas import Done
 from core.errors import ProtocolError
+from core.rounds import Participation
 from kernel.clock import Pacer, RoundPlanner
+from runtime.launcher import launch
+from tests.conftest import SCENARIOS
 
 
 def done(node, rnd, published=None, next_time=None):
@@ -53,3 +59,40 @@ def test_pacer_targets():
     pacer = Pacer(2.0)
     assert pacer.delay(1_000_000) == pytest.approx(2.0, abs=0.05)  # 1 unit at 2 s/unit
     assert pacer.delay(0) <= 0.0
+
+
+# -- sparse rounds ------------------------------------------------------------------------------
+
+
+def test_a_round_ticks_only_nodes_with_a_timer_due_or_a_message_to_collect():
+    p = Participation(["plant", "ctrl", "op", "historian", "new"])
+    p.learn("plant", 100, ["plant/r/actuator/*", "plant/r/sampling/*"])
+    p.learn("ctrl", None, ["loop/level/meas", "ops/setpoint/level"])
+    p.learn("op", 180, [])
+    p.learn("historian", None, ["**"])  # "new" has not said what it listens to
+    assert p.of(100, {}) == {"plant"}  # only the timer
+    assert p.of(50, {"loop/level/meas": 1}) == {"ctrl", "historian", "new"}
+    assert p.of(100, {"plant/r/actuator/F_out": 1}) == {"plant", "historian", "new"}
+    assert p.of(50, {"loop/level/meas": 0}) == set()  # nothing announced on it
+    p.learn("new", 70, ["events/network"])
+    assert p.of(70, {"loop/level/meas": 1}) == {"ctrl", "historian", "new"}
+    p.drop("new")
+    assert p.of(70, {}) == set()
+
+
+def test_the_bus_engines_tick_a_node_only_when_it_has_something_to_do(tmp_path):
+    """The benchmark's operator listens to nothing and publishes the set points at 1.8 and
+    2.4 pu: it takes part in round 0 and those two rounds only; the historian, which records
+    every message, in every round that announced some (the history's ticks say which)."""
+    result = launch(SCENARIOS / "jcstr_benchmark.yaml", tmp_path / "run", engine="threads")
+    assert result.code == 0, result.error
+    db = sqlite3.connect(tmp_path / "run" / "history.sqlite")
+    try:
+        stop = json.loads(db.execute("SELECT value FROM meta WHERE name = 'stop'").fetchone()[0])
+        ticks = [json.loads(e) for (e,) in db.execute("SELECT expected FROM ticks ORDER BY round")]
+    finally:
+        db.close()
+    taken = stop["rounds_taken"]
+    assert taken["operator"] == 3
+    assert taken["historian"] == 1 + sum(1 for e in ticks[1:] if any(e.values()))
+    assert max(taken.values()) < len(ticks)  # nobody was ticked in every round
