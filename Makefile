@@ -18,7 +18,7 @@ $(STAMP): requirements.lock pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/wncs run scenarios/jcstr_wncs.yaml --out runs/jcstr_wncs
+	$(BIN)/wncs run scenarios/jcstr_wncs.yaml --out runs/jcstr_wncs --force
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

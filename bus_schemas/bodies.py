@@ -5,7 +5,7 @@ Bodies are frozen and forbid extra fields; time is integer ticks, never float.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -82,7 +82,11 @@ class Setpoint(BaseModel):
 
     model_config = _FROZEN
 
-    value: Finite
+    LIMIT: ClassVar[float] = 1e9
+    """Largest set-point magnitude: a set point is a physical value; beyond this a law's
+    arithmetic could overflow to infinity."""
+
+    value: Finite = Field(ge=-LIMIT, le=LIMIT)
     t_apply: int | None = Field(
         default=None,
         ge=0,

@@ -46,10 +46,18 @@ def merge_dropped(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
 class RoundPlanner:
     """Which round comes next (see the module docstring)."""
 
-    def __init__(self, participants: Iterable[str], end: int, *, max_microsteps: int) -> None:
+    def __init__(
+        self,
+        participants: Iterable[str],
+        end: int,
+        *,
+        max_microsteps: int,
+        max_rounds: int = 100_000_000,
+    ) -> None:
         self.participants = frozenset(participants)
         self.end = end
         self.max_microsteps = max_microsteps
+        self.max_rounds = max_rounds
         self.round = 0
         self.t = 0
         self.expected: dict[str, int] = {}
@@ -76,7 +84,12 @@ class RoundPlanner:
     def advance_with(self, published: dict[str, int], next_times: Mapping[str, int | None]) -> None:
         """Move on, given the round's published counts per key and each participant's next
         timer (``None``: none): a microstep if anything was published, else next-event
-        advance."""
+        advance. More than ``max_rounds`` rounds is an error (a run that would never end)."""
+        if self.round + 1 >= self.max_rounds:
+            raise ProtocolError(
+                f"round {self.round}: the run reached clock.max_rounds ({self.max_rounds}) at "
+                f"t = {to_units(self.t)}; shorten end_time or raise clock.max_rounds"
+            )
         if published:
             self.microsteps += 1
             if self.microsteps > self.max_microsteps:

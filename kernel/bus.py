@@ -110,9 +110,18 @@ def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]
 
 
 def open_client(connect: str) -> zenoh.Session:
-    """Open a client session connected to the router at ``connect``."""
+    """Open a client session connected to the router at ``connect``.
+
+    Raises
+    ------
+    ConfigError
+        If no router answers at ``connect`` (a run that has ended, a wrong endpoint).
+    """
     init_zenoh_log()
-    return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))
+    try:
+        return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))
+    except zenoh.ZError as err:
+        raise ConfigError(f"no router answers at {connect} (has the run ended?): {err}") from err
 
 
 def is_put(sample: zenoh.Sample) -> bool:

@@ -46,6 +46,7 @@ class ClockSpec:
     startup_timeout_s: float
     max_microsteps: int
     may_drop: frozenset[str] = frozenset()
+    max_rounds: int = 100_000_000
 
 
 log = logging.getLogger(__name__)
@@ -94,7 +95,12 @@ class ClockRunner:
         self.spec = spec
         self.interpret = interpret
         self.participants = spec.participants
-        self.planner = RoundPlanner(self.participants, spec.end, max_microsteps=spec.max_microsteps)
+        self.planner = RoundPlanner(
+            self.participants,
+            spec.end,
+            max_microsteps=spec.max_microsteps,
+            max_rounds=spec.max_rounds,
+        )
         self.participation = Participation(self.participants)
         self.ticked: dict[str, int] = {}  # node -> rounds it took part in (sparse rounds)
         self.pacer = Pacer(realtime) if realtime else None

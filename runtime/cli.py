@@ -210,6 +210,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="pace virtual time against the wall clock",
     )
     run.add_argument("--quiet", action="store_true", help="print only errors")
+    run.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the run already in --out (refused without it)",
+    )
     _add_set(run)
 
     node = _command(
@@ -409,6 +414,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         realtime=args.realtime,
         progress=stream,
         overrides=args.set,
+        force=args.force,
     )
     if result.code != 0:
         print(f"wncs run: {result.error}", file=sys.stderr)

@@ -73,6 +73,7 @@ def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
         behaviours,
         end=to_ticks(scenario.end_time),
         max_microsteps=scenario.clock.max_microsteps,
+        max_rounds=scenario.clock.max_rounds,
         on_round=record,
     )
     run.run()

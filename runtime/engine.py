@@ -93,10 +93,13 @@ class DirectEngine:
         *,
         end: int,
         max_microsteps: int,
+        max_rounds: int = 100_000_000,
         on_round: Callable[[list[Message]], None] | None = None,
     ) -> None:
         self.behaviours = dict(sorted(behaviours.items()))
-        self.planner = RoundPlanner(self.behaviours, end, max_microsteps=max_microsteps)
+        self.planner = RoundPlanner(
+            self.behaviours, end, max_microsteps=max_microsteps, max_rounds=max_rounds
+        )
         self.on_round = on_round
         self._seq: Counter[str] = Counter()
         self._routes: dict[str, tuple[str, ...]] = {}

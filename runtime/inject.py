@@ -87,6 +87,11 @@ def _ops_request(kind: str, words: list[str], run_dir: Path | None) -> InjectReq
         raise ConfigError(f"setpoint: unknown loop {loop!r} (loops: {sorted(scenario.loops)})")
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise ConfigError(f"setpoint: {loop}: not a finite number: {value!r}")
+    if abs(value) > Setpoint.LIMIT:
+        raise ConfigError(
+            f"setpoint: {loop}: {value!r} is beyond a physical value (|value| <= "
+            f"{Setpoint.LIMIT:g})"
+        )
     return InjectRequest(setpoint={"loop": loop, "value": float(value)})
 
 

@@ -28,7 +28,7 @@ from typing import Any, TextIO
 import yaml
 
 from bus_schemas import Stop, Tick, codec, keys
-from core.errors import NodeFault, SchemaError
+from core.errors import ConfigError, NodeFault, SchemaError
 from core.time import to_units
 from kernel.bus import DEFAULT_LISTEN, is_put, open_client, open_router
 from kernel.clock import ClockRunner
@@ -144,11 +144,14 @@ def launch(
     realtime: float | None = None,
     progress: TextIO | None = None,
     overrides: Sequence[str] = (),
+    force: bool = False,
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
     ``overrides`` are ``--set`` arguments (``"loops.level.tau_s=0.2"``) applied to the file's
     mapping before validation; each node process gets them too, so all load the same scenario.
+    ``out`` must not hold a run already (its ``run.json``) unless ``force``, which replaces it;
+    an ``out`` that cannot be written is refused too, before anything starts.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -156,8 +159,7 @@ def launch(
     scenario = load_scenario(scenario_path, overrides=overrides)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _prepare_out(Path(out), force)
     (out / SCENARIO_FILE).write_text(
         yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
     )
@@ -192,6 +194,26 @@ def launch(
         progress=progress,
         wall0=wall0,
     )
+
+
+def _prepare_out(out: Path, force: bool) -> Path:
+    """``out``, created and writable, and holding no earlier run (or, with ``force``, emptied of
+    it); ``ConfigError`` naming ``--out`` otherwise."""
+    if (out / RUN_FILE).exists():
+        if not force:
+            raise ConfigError(
+                f"--out {out}: holds a run already ({RUN_FILE}); choose another directory, or "
+                "--force to replace it"
+            )
+        shutil.rmtree(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".wncs-write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise ConfigError(f"--out {out}: cannot write there: {err.strerror or err}") from err
+    return out
 
 
 def _launch_bus(

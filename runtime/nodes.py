@@ -49,6 +49,7 @@ def clock_spec(scenario: Scenario) -> ClockSpec:
         round_timeout_s=scenario.clock.round_timeout_s,
         startup_timeout_s=scenario.clock.startup_timeout_s,
         max_microsteps=scenario.clock.max_microsteps,
+        max_rounds=scenario.clock.max_rounds,
         may_drop=frozenset(scenario.clock.may_drop),
     )
 

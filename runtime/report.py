@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+import sqlite3
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +34,21 @@ SUMMARY_FILE = "summary.json"
 RECORD_FILE = "record.json"
 
 
+def _json_safe(x: Any) -> Any:
+    """``x`` with every non-finite float as ``None`` (JSON has no NaN or infinity)."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_json_safe(v) for v in x]
+    return x
+
+
 def write_summary(rec: RunRecord, out: Path, **extra: Any) -> dict[str, Any]:
-    """Write ``summary.json`` and return it."""
-    summary = summarize(rec)
-    summary.update(extra)
+    """Write ``summary.json`` and return it (a figure that is not finite, e.g. the IAE of a loop
+    that diverged, is written ``null``)."""
+    summary = _json_safe({**summarize(rec), **extra})
     (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     return summary
 
@@ -93,12 +106,22 @@ def load_run(out: Path) -> tuple[Scenario, RunRecord]:
     """
     try:
         info = json.loads((out / RUN_FILE).read_text())
+        if not isinstance(info, dict):
+            raise ValueError("not a JSON object")
     except (OSError, ValueError) as err:
         raise ConfigError(f"{out / RUN_FILE}: not a run directory ({err})") from err
     scenario = load_scenario(out / SCENARIO_FILE)
     if (out / HISTORY_FILE).exists():
-        return scenario, load_record(out / HISTORY_FILE, scenario, engine=info["engine"])
-    return scenario, load_saved_record(out)
+        try:
+            return scenario, load_record(
+                out / HISTORY_FILE, scenario, engine=str(info.get("engine", "processes"))
+            )
+        except sqlite3.DatabaseError as err:
+            raise ConfigError(f"{out / HISTORY_FILE}: not a readable history ({err})") from err
+    try:
+        return scenario, load_saved_record(out)
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ConfigError(f"{out / RECORD_FILE}: not a readable record ({err})") from err
 
 
 def draw_loop(ax: Any, ax_u: Any, rec: RunRecord, name: str) -> None:

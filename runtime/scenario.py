@@ -28,8 +28,9 @@ Two node names are reserved and always present: ``clock`` and ``historian``.
 
 from __future__ import annotations
 
+import math
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar
@@ -43,7 +44,7 @@ from agents.operator.behaviour import OperatorBehaviour
 from agents.wncsca import behaviour as wncsca_behaviour
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.links import link_groups
-from bus_schemas import keys
+from bus_schemas import Setpoint, keys
 from controllers.behaviour import ControllerBehaviour
 from controllers.feedforward import SteadyStateFeedforward
 from controllers.registry import (
@@ -108,6 +109,13 @@ _C = TypeVar("_C", bound=BaseModel)
 _STRICT = ConfigDict(frozen=True, extra="forbid")
 
 
+SETPOINT_LIMIT = Setpoint.LIMIT
+"""Largest set-point magnitude accepted anywhere (the bus schema's bound)."""
+
+MAX_END_TIME = 1e9
+"""Longest run, time units (1e15 ticks: well inside 64-bit integers)."""
+
+
 class ClockConfig(BaseModel):
     """Wall-clock limits of the round protocol (DESIGN section 3)."""
 
@@ -121,6 +129,12 @@ class ClockConfig(BaseModel):
     )
     max_microsteps: int = Field(
         default=10_000, gt=0, description="rounds allowed at one instant before it is an error"
+    )
+    max_rounds: int = Field(
+        default=100_000_000,
+        gt=0,
+        description="rounds a run may take before it is stopped as an error (a long end_time "
+        "with a fast timer runs this many at most)",
     )
     may_drop: tuple[str, ...] = Field(
         default=(),
@@ -500,7 +514,11 @@ class SetpointChange(BaseModel):
 
     t: float = Field(ge=0)
     loop: str
-    value: float
+    value: float = Field(
+        ge=-SETPOINT_LIMIT,
+        le=SETPOINT_LIMIT,
+        description=f"the new set point (a physical value: |value| <= {SETPOINT_LIMIT:g})",
+    )
     announce: float = Field(
         default=0.0,
         ge=0,
@@ -524,7 +542,11 @@ class Scenario(BaseModel):
 
     name: str
     time_unit: str = "pu"
-    end_time: float = Field(gt=0)
+    end_time: float = Field(
+        gt=0,
+        le=MAX_END_TIME,
+        description=f"end of the run, time units (at most {MAX_END_TIME:g}: ticks stay 64-bit)",
+    )
     seed: int = Field(default=0, ge=0)
     clock: ClockConfig = ClockConfig()
     nodes: dict[str, NodeConfig]
@@ -619,6 +641,7 @@ class Scenario(BaseModel):
                     f"{at}.actuator: plant {loop.plant!r} has no input {loop.actuator!r} "
                     f"(inputs: {list(plant.input_names)})"
                 )
+
             if lname not in ctrl.loop_names:
                 what = f"loop {ctrl.loop!r}" if ctrl.loops is None else f"loops {list(ctrl.loops)}"
                 raise ValueError(f"{at}.controller: node {loop.controller!r} controls {what}")
@@ -748,7 +771,22 @@ class Scenario(BaseModel):
         self._check_links()
         self._check_multi_loop_laws()
         self._check_agent_links()
+        self._check_one_loop_per_input()
         return self
+
+    def _check_one_loop_per_input(self) -> None:
+        """Two loops moving one input would fight over it (after the laws' own checks, which
+        name their own cases more precisely)."""
+        movers: dict[tuple[str, str], str] = {}  # (plant, input) -> the loop that moves it
+        for lname, loop in self.loops.items():
+            if loop.actuator is None:
+                continue
+            first = movers.setdefault((loop.plant, loop.actuator), lname)
+            if first != lname:
+                raise ValueError(
+                    f"loops.{lname}.actuator: input {loop.actuator!r} of plant {loop.plant!r} is "
+                    f"already moved by loop {first!r} (one loop per input)"
+                )
 
     def _check_agent_links(self) -> None:
         """The analysis an agent with ``links:`` will run needs laws it can analyse (built now,
@@ -1011,6 +1049,23 @@ def _format_error(source: str, err: ValidationError, text: str | None = None) ->
     return "\n".join(lines)
 
 
+_INFINITE_OK = frozenset({"u_min", "u_max"})
+"""Fields where an infinite value means "no limit" (actuator limits)."""
+
+
+def _non_finite(data: Any, path: tuple[Any, ...] = ()) -> Iterator[tuple[tuple[Any, ...], float]]:
+    """Every NaN, and every infinity outside :data:`_INFINITE_OK`, in a scenario's mapping."""
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from _non_finite(value, (*path, key))
+    elif isinstance(data, list | tuple):
+        for i, value in enumerate(data):
+            yield from _non_finite(value, (*path, i))
+    elif isinstance(data, float) and not math.isfinite(data):
+        if math.isnan(data) or not path or path[-1] not in _INFINITE_OK:
+            yield path, data
+
+
 def parse_scenario(
     data: Any,
     *,
@@ -1026,6 +1081,10 @@ def parse_scenario(
     """
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
+    for path, value in _non_finite(data):
+        line = None if text is None else field_line(text, path)
+        where = source if line is None else f"{source}: line {line}"
+        raise ConfigError(f"{where}: {'.'.join(map(str, path))}: {value} is not a finite number")
     context = {"base_dir": str(base_dir)} if base_dir is not None else None
     try:
         return Scenario.model_validate(data, context=context)
@@ -1052,6 +1111,13 @@ def load_scenario(path: str | Path, *, overrides: Sequence[str | Override] = ())
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ConfigError(f"{path}: cannot read scenario: {err.strerror or err}") from err
+    except UnicodeDecodeError as err:
+        raise ConfigError(
+            f"{path}: not a text scenario: byte {err.object[err.start]:#04x} at offset "
+            f"{err.start} is not UTF-8"
+        ) from err
+    if "\x00" in text:
+        raise ConfigError(f"{path}: not a text scenario: NUL byte at offset {text.index(chr(0))}")
     data = read_yaml(text, source=str(path))
     parsed = [o if isinstance(o, Override) else parse_override(o) for o in overrides]
     data = apply_overrides(data, parsed)

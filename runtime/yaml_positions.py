@@ -30,10 +30,13 @@ def read_yaml(text: str, *, source: str) -> Any:
     Raises
     ------
     ConfigError
-        ``source: line L, column C: not valid YAML: <problem>`` (and PyYAML's context, if any).
+        ``source: line L, column C: not valid YAML: <problem>`` (and PyYAML's context, if any),
+        or nesting too deep to read.
     """
     try:
         return yaml.safe_load(text)
+    except RecursionError as err:  # 100 000 nested brackets: the parser's recursion runs out
+        raise ConfigError(f"{source}: not a scenario: nested too deeply to read") from err
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
         where = source

@@ -24,6 +24,7 @@ directory ``wncs run`` left.
 from __future__ import annotations
 
 import json
+import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -217,6 +218,7 @@ def run(
     out: str | Path | None = None,
     seed: int | None = None,
     realtime: float | None = None,
+    force: bool = False,
 ) -> Result:
     """Run a scenario (a validated :class:`Scenario` or a file) on ``engine`` and return its
     :class:`Result`.
@@ -224,7 +226,8 @@ def run(
     ``values`` are applied first (as :func:`with_values`). The direct engine with no ``out``
     simulates in memory; with ``out``, or on a bus engine (``threads``, ``processes``), the run
     goes through the launcher exactly as ``wncs run --out DIR`` (``out`` default: a new
-    temporary directory) and the result is read back from the directory.
+    temporary directory; one holding a run already is refused unless ``force``) and the result
+    is read back from the directory.
 
     Raises
     ------
@@ -244,6 +247,10 @@ def run(
         rec = simulate(sc)
         return Result(sc, rec, summarize(rec))
     target = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="wncs-"))
+    if (target / "run.json").exists():
+        if not force:
+            raise ConfigError(f"out {target}: holds a run already; pass force=True to replace it")
+        shutil.rmtree(target)
     target.mkdir(parents=True, exist_ok=True)
     path = target / "input.yaml"  # what the nodes load; scenario.yaml is the launcher's copy
     path.write_text(yaml.safe_dump(sc.model_dump(mode="json"), sort_keys=False))
