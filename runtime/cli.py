@@ -40,7 +40,7 @@ from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
 from runtime.export import export_run
 from runtime.inject import build_request, send
-from runtime.launcher import launch
+from runtime.launcher import INTERRUPTED, launch
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.report import load_run, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
@@ -416,6 +416,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides=args.set,
         force=args.force,
     )
+    if result.code == INTERRUPTED:
+        where = f"; partial results in {args.out}" if result.summary else ""
+        print(f"wncs run: {result.error}{where}", file=sys.stderr)
+        return result.code
     if result.code != 0:
         print(f"wncs run: {result.error}", file=sys.stderr)
         return result.code
@@ -446,7 +450,14 @@ def _cmd_node(args: argparse.Namespace) -> int:
     session = open_client(args.connect)
     try:
         if args.name == "clock":
-            return clock_runner(scenario, session, args.run_id, realtime=args.realtime).run()
+            runner = clock_runner(scenario, session, args.run_id, realtime=args.realtime)
+
+            def interrupt(signum: int, frame: object) -> None:
+                runner.cancel(f"interrupted ({signal.Signals(signum).name} to the clock)")
+
+            signal.signal(signal.SIGTERM, interrupt)  # the launcher's Ctrl-C arrives so
+            signal.signal(signal.SIGINT, interrupt)
+            return runner.run()
         options = {"out": args.out, "engine": args.engine}
         return bus_node(scenario, args.name, args.run_id, session, options).run()
     finally:

@@ -22,9 +22,6 @@ from runtime.artefacts import HISTORY_FILE
 
 __all__ = ["Recorder", "HistorianNode", "HISTORY_FILE"]
 
-_COMMIT_EVERY = 200  # rounds
-
-
 class Recorder(Behaviour):
     """Writes every message it is handed (subscribed to ``**``) into an open history database."""
 
@@ -61,12 +58,13 @@ class HistorianNode(BusNode):
         )
 
     def on_tick(self, tick: Tick) -> None:
+        """Record the tick and commit: every message of the rounds before is on disk (WAL), so
+        a run cut short keeps all but its last round."""
         self.db.execute(
             "INSERT INTO ticks (round, t, expected) VALUES (?, ?, ?)",
             (tick.round, tick.t, json.dumps(tick.expected, sort_keys=True)),
         )
-        if tick.round % _COMMIT_EVERY == 0:
-            self.db.commit()
+        self.db.commit()
 
     def on_stop(self, stop: Stop) -> None:
         self._set_meta("stop", stop.model_dump())

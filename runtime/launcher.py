@@ -10,6 +10,7 @@ one PNG per loop, and ``logs/`` with each process's log.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
 import os
@@ -57,6 +58,20 @@ class RunResult:
     out: Path | None = None
 
 
+INTERRUPTED = 130
+"""Exit code of a run stopped by Ctrl-C or SIGTERM (the shell's 128 + SIGINT)."""
+
+
+def _die_with_parent() -> None:
+    """In a node process before it runs (``preexec_fn``): SIGTERM when the launcher dies, even
+    by ``kill -9`` (Linux ``prctl(PR_SET_PDEATHSIG)``), so no node outlives its run."""
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):  # not Linux: the launcher's own clean-up still applies
+        pass
+
+
 def _wncs_executable() -> list[str]:
     script = Path(sys.executable).parent / "wncs"
     if script.exists():
@@ -96,6 +111,7 @@ class _Progress:
         self._shown = -1.0
         self.first_tick_at: float | None = None  # perf_counter when round 0 was seen
         self.stop_at: float | None = None
+        self.started: float | None = None  # perf_counter when every participant was alive
 
     def on_tick(self, sample: Any) -> None:
         try:
@@ -281,6 +297,13 @@ def _launch_bus(
     wall_end = time.perf_counter()
     if prog.stop is not None and not prog.stop.ok and error is None:
         error = prog.stop.reason
+    if code == INTERRUPTED and (out / "history.sqlite").exists():
+        # what the history holds up to the interruption: a partial summary, said so
+        rec = load_record(out / "history.sqlite", scenario, engine=engine)
+        rec.wall_s = wall_end - wall0
+        summary = write_summary(rec, out, complete=False, interrupted_at=prog.t)
+        write_plots(rec, out, scenario=scenario)
+        return RunResult(code, error, summary, out)
     if code != 0:
         return RunResult(code, error or "run failed", {}, out)
     rec = load_record(out / "history.sqlite", scenario, engine=engine)
@@ -325,37 +348,27 @@ def _run_processes(
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
                 start_new_session=True,
+                preexec_fn=_die_with_parent,
             )
         run_info["nodes"] = {n: p.pid for n, p in procs.items()}
         _write_json(out / RUN_FILE, run_info)
         clock = procs["clock"]
-        while clock.poll() is None:
-            if t_started is None and set(names) <= prog.alive:
-                t_started = time.perf_counter()
-            if t_started is None:  # a node that dies while starting: no need to wait for the clock
-                dead = {n: p.returncode for n, p in procs.items() if p.poll() not in (None, 0)}
-                if dead:
-                    name = sorted(dead)[0]
-                    tail = _log_tail(logs / f"{name}.log")
-                    return (
-                        2 if dead[name] == 2 else 1,
-                        (f"node {name!r} exited with code {dead[name]} while starting: {tail}"),
-                        None,
-                    )
-            prog.show()
-            try:
-                clock.wait(timeout=0.05)
-            except subprocess.TimeoutExpired:
-                pass
+        try:
+            _wait_for_clock(clock, procs, names, logs, prog)
+        except _StartFailed as fail:
+            return fail.code, fail.message, None
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the clock stops the nodes, then we wait
+            clock.send_signal(signal.SIGTERM)
+            _wait_all(procs)
+            return INTERRUPTED, _interrupted(prog), prog.started
+        t_started = prog.started
         code = clock.returncode
-        deadline = time.monotonic() + _EXIT_GRACE_S
-        for name, p in procs.items():
-            try:
-                p.wait(timeout=max(deadline - time.monotonic(), 0.1))
-            except subprocess.TimeoutExpired:
-                log.warning("node %s did not exit after the stop; killing it", name)
+        _wait_all(procs)
         error = None
-        if code != 0:
+        if code < 0:  # the clock itself died (killed): a fault, said as such
+            name = signal.Signals(-code).name
+            code, error = 3, f"the clock died ({name}) at t = {prog.t:g} {prog.unit}"
+        elif code != 0:
             error = prog.stop.reason if prog.stop is not None else _last_error(logs / "clock.log")
         else:
             dropped = set(prog.stop.dropped_nodes) if prog.stop is not None else set()
@@ -373,6 +386,74 @@ def _run_processes(
                 _kill(p)
         for f in files:
             f.close()
+
+
+class _StartFailed(Exception):
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(message)
+        self.code, self.message = code, message
+
+
+def _wait_for_clock(
+    clock: subprocess.Popen,
+    procs: dict[str, subprocess.Popen],
+    names: list[str],
+    logs: Path,
+    prog: _Progress,
+) -> None:
+    """Wait for the clock process to end, showing progress; a node that dies while the run
+    starts ends the wait at once (:class:`_StartFailed`)."""
+    while clock.poll() is None:
+        if prog.started is None and set(names) <= prog.alive:
+            prog.started = time.perf_counter()
+        if prog.started is None:  # a node that dies while starting: no need to wait for the clock
+            dead = {n: p.returncode for n, p in procs.items() if p.poll() not in (None, 0)}
+            if dead:
+                name = sorted(dead)[0]
+                tail = _log_tail(logs / f"{name}.log")
+                raise _StartFailed(
+                    2 if dead[name] == 2 else 1,
+                    f"node {name!r} exited with code {dead[name]} while starting: {tail}",
+                )
+        prog.show()
+        try:
+            clock.wait(timeout=0.05)
+        except subprocess.TimeoutExpired:
+            pass
+
+
+def _watch_threads(
+    clock_thread: threading.Thread,
+    clock: list[ClockRunner],
+    errors: dict[str, str],
+    names: list[str],
+    prog: _Progress,
+) -> float | None:
+    """Wait for the clock thread to end, showing progress; when every node is alive returns
+    that moment; a node that fails while starting ends the wait (:class:`_StartFailed`)."""
+    while clock_thread.is_alive():
+        if prog.started is None and set(names) <= prog.alive:
+            prog.started = time.perf_counter()
+        if prog.started is None and errors and clock:
+            name = sorted(errors)[0]
+            raise _StartFailed(1, f"node {name!r} failed while starting: {errors[name]}")
+        prog.show()
+        clock_thread.join(0.05)
+    return prog.started
+
+
+def _wait_all(procs: dict[str, subprocess.Popen]) -> None:
+    """Give every node the grace period to leave after the clock's Stop."""
+    deadline = time.monotonic() + _EXIT_GRACE_S
+    for name, p in procs.items():
+        try:
+            p.wait(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            log.warning("node %s did not exit after the stop; killing it", name)
+
+
+def _interrupted(prog: _Progress) -> str:
+    return f"interrupted at t = {prog.t:g} {prog.unit}"
 
 
 def _kill(p: subprocess.Popen) -> None:
@@ -448,23 +529,25 @@ def _run_threads(
         th.start()
     t_started: float | None = None
     clock_thread = threads[0]
-    while clock_thread.is_alive():
-        if t_started is None and set(names) <= prog.alive:
-            t_started = time.perf_counter()
-        if t_started is None and errors and clock:  # a node failed while starting
-            name = sorted(errors)[0]
-            message = f"node {name!r} failed while starting: {errors[name]}"
-            clock[0].cancel(message)  # the clock stops the others; no thread outlives the run
-            clock_thread.join(_EXIT_GRACE_S)
-            with lock:  # a node that subscribed after the clock's Stop would wait for rounds
-                aborted.set()
-                for node in started.values():
-                    node.abort()
-            for th in threads:
-                th.join(_EXIT_GRACE_S)
-            return 1, message, None
-        prog.show()
-        clock_thread.join(0.05)
+    try:
+        t_started = _watch_threads(clock_thread, clock, errors, names, prog)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the clock stops the nodes, then we wait
+        if clock:
+            clock[0].cancel(_interrupted(prog))
+        clock_thread.join(_EXIT_GRACE_S)
+        for th in threads[1:]:
+            th.join(_EXIT_GRACE_S)
+        return INTERRUPTED, _interrupted(prog), prog.started
+    except _StartFailed as fail:  # a node failed while starting
+        clock[0].cancel(fail.message)  # the clock stops the others; no thread outlives the run
+        clock_thread.join(_EXIT_GRACE_S)
+        with lock:  # a node that subscribed after the clock's Stop would wait for rounds
+            aborted.set()
+            for node in started.values():
+                node.abort()
+        for th in threads:
+            th.join(_EXIT_GRACE_S)
+        return 1, fail.message, None
     for th in threads[1:]:
         th.join(_EXIT_GRACE_S)
     code = result.get("clock", 3)
