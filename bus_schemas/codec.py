@@ -43,8 +43,11 @@ def pack_mapping(body: dict[str, Any]) -> bytes:
 
 
 def unpack_mapping(raw: bytes) -> dict[str, Any]:
-    """Inverse of :func:`pack_mapping`."""
-    obj = msgpack.unpackb(raw, raw=False)
+    """Inverse of :func:`pack_mapping`; ``SchemaError`` when ``raw`` is not msgpack."""
+    try:
+        obj = msgpack.unpackb(raw, raw=False)
+    except (msgpack.exceptions.UnpackException, ValueError, TypeError) as err:
+        raise SchemaError(f"body is not msgpack: {type(err).__name__}: {err}") from err
     if not isinstance(obj, dict):
         raise SchemaError(f"body must be a map, got {type(obj).__name__}")
     return obj

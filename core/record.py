@@ -102,6 +102,7 @@ class RunRecord:
     monitor: dict[str, list[Any]] = field(default_factory=dict)  # loop -> the monitor's assessments
     wall_s: float = 0.0
     phases: dict[str, float] = field(default_factory=dict)
+    invalid: list[dict[str, Any]] = field(default_factory=list)  # history rows not validated
 
 
 Simulate = Callable[[Any], RunRecord]
@@ -238,6 +239,7 @@ def summarize(rec: RunRecord) -> dict[str, Any]:
             "lost": rec.lost
             + sum(p["lost"] + p["moves_lost"] for p in paths.values())
             + sum(lk["lost"] for lk in links.values()),
+            **({"invalid_in_history": rec.invalid} if rec.invalid else {}),
         },
         "network": {
             "paths": paths,

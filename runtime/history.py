@@ -22,12 +22,42 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-from bus_schemas import codec, keys
+from pydantic import BaseModel
+
+from bus_schemas import (
+    Decision,
+    Estimate,
+    Loss,
+    ModeRequest,
+    MonitorAssessment,
+    Move,
+    NetApplied,
+    NetStats,
+    NetworkEvent,
+    PlantState,
+    Proposal,
+    Rates,
+    Sample,
+    SamplingPeriod,
+    Setpoint,
+    Timing,
+    codec,
+    keys,
+)
+from bus_schemas.errors import SchemaError
 from core.record import RunRecord
 from runtime.records import RecordBuilder
 from runtime.scenario import Scenario
 
-__all__ = ["SCHEMA", "connect", "messages_digest", "load_record", "read_meta"]
+__all__ = [
+    "SCHEMA",
+    "BODIES",
+    "connect",
+    "messages_digest",
+    "load_record",
+    "read_meta",
+    "body_schema",
+]
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (name TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -74,16 +104,67 @@ def messages_digest(path: str | Path) -> str:
     return h.hexdigest()
 
 
+BODIES: tuple[tuple[str, type[BaseModel]], ...] = (
+    ("plant/*/sensor/*", Sample),
+    ("plant/*/actuator/*", Move),
+    ("plant/*/state", PlantState),
+    ("plant/*/sampling/*", SamplingPeriod),
+    ("loop/*/meas", Sample),
+    ("loop/*/u", Move),
+    ("loop/*/sp", Setpoint),
+    ("link/*/tx", Estimate),
+    ("link/*/rx", Estimate),
+    ("ops/setpoint/*", Setpoint),
+    ("ops/mode", ModeRequest),
+    ("events/*", NetworkEvent),
+    ("net/applied", NetApplied),
+    ("net/proposal", Proposal),
+    ("net/stats", NetStats),
+    ("net/lost", Loss),
+    ("wncsca/decision", Decision),
+    ("wncsca/rates", Rates),
+    ("wncsca/timing", Timing),
+    ("monitor/assessment/*", MonitorAssessment),
+)
+"""The body schema of every data key (run-relative key expression -> body)."""
+
+
+def body_schema(key: str) -> type[BaseModel] | None:
+    """The schema of the bodies on concrete key ``key`` (``None``: not a data key we know)."""
+    for pattern, schema in BODIES:
+        if keys.intersects(pattern, key):
+            return schema
+    return None
+
+
 def load_record(path: str | Path, scenario: Scenario, *, engine: str) -> RunRecord:
-    """Rebuild the run's record (traces, true outputs, message counts) from its history."""
+    """Rebuild the run's record (traces, true outputs, message counts) from its history.
+
+    Only validated messages go into it: a stored body that does not decode or fails its key's
+    schema (a forged or garbled message the nodes refused, which the historian still keeps) is
+    listed in :attr:`RunRecord.invalid`, never read as a number.
+    """
     builder = RecordBuilder(scenario, engine=engine)
+    invalid: list[dict[str, Any]] = []
     with connect(path) as conn:
-        rows = conn.execute("SELECT t, key, body FROM messages ORDER BY id")
-        for t, key, body in rows:
-            builder.add(t, key, lambda raw=body: codec.unpack_mapping(raw))
+        rows = conn.execute("SELECT round, t, key, src, seq, body FROM messages ORDER BY id")
+        for rnd, t, key, src, seq, body in rows:
+            try:
+                mapping = codec.unpack_mapping(body)
+                schema = body_schema(key)
+                if schema is not None:
+                    codec.validate_body(mapping, schema)
+            except SchemaError as err:
+                invalid.append(
+                    {"round": rnd, "key": key, "src": src, "seq": seq, "reason": str(err)}
+                )
+                continue
+            builder.add(t, key, lambda m=mapping: m)
         meta = {n: json.loads(v) for n, v in conn.execute("SELECT * FROM meta")}
     stop = meta.get("stop") or {}
-    return builder.finish(
+    rec = builder.finish(
         dropped_invalid=dict(stop.get("dropped_invalid", {})),
         dropped_nodes=dict(stop.get("dropped_nodes", {})),
     )
+    rec.invalid = invalid
+    return rec

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 import shutil
+import sqlite3
 
 import pytest
 
+from bus_schemas import codec
 from core.errors import ProtocolError
 from core.rounds import RoundPlanner
 from runtime.cli import main
@@ -107,3 +109,30 @@ def test_a_run_stops_at_its_largest_number_of_rounds():
         for t in range(1, 10):
             planner.advance_with({}, {"a": t})
     assert planner.round == 4
+
+
+def test_a_history_row_that_fails_its_schema_is_listed_never_read(tmp_path, capsys):
+    """A forged body the nodes refused but the historian kept (here: a delivered sample whose
+    value is text, and a body that is not msgpack) is listed in the summary and left out of
+    the traces, which equal the clean run's."""
+    out = tmp_path / "run"
+    argv = ["run", str(BENCH), "--engine", "threads", "--out", str(out), "--quiet"]
+    assert main([*argv, "--set", "end_time=3"]) == 0
+    clean = json.loads((out / "summary.json").read_text())
+    with sqlite3.connect(out / "history.sqlite") as db:
+        db.execute(
+            "INSERT INTO messages (round, t, key, src, seq, body) VALUES (?, ?, ?, ?, ?, ?)",
+            (5, 100_000, "loop/level/meas", "network", 999, codec.pack_mapping({"value": "abc"})),
+        )
+        db.execute(
+            "INSERT INTO messages (round, t, key, src, seq, body) VALUES (?, ?, ?, ?, ?, ?)",
+            (6, 100_000, "loop/level/u", "level_controller", 999, b"\xc1garbage"),
+        )
+    assert main(["report", str(out)]) == 0
+    again = json.loads((out / "summary.json").read_text())
+    listed = again["messages"]["invalid_in_history"]
+    assert [(r["key"], r["seq"]) for r in listed] == [
+        ("loop/level/meas", 999),
+        ("loop/level/u", 999),
+    ]
+    assert again["loops"] == clean["loops"]
