@@ -52,6 +52,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/wncsca_methods.py --quick
 	$(BIN)/python bench/wncsca_latency.py
 	$(BIN)/python bench/tsch_slotframes.py
+	$(BIN)/python bench/startup.py
 
 clean:
 	rm -rf $(VENV) $(LOCK_VENV) runs site

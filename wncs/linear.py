@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from controllers.pi import PIConfig, pi_state_space
+from controllers.pi import PIConfig
+from controllers.pi_linear import pi_state_space
 from controllers.registry import uses_feedforward
 from plants.linearization import equilibrium, linearize
 from plants.sampled import sampled_with_delay
