@@ -111,6 +111,7 @@ class ClockRunner:
         self.error: str | None = None
         self.dropped_nodes: list[dict[str, Any]] = []
         self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
+        self._cancelled: str | None = None  # the reason given to cancel(), if any
 
     # -- bus plumbing ----------------------------------------------------------------------------
     def _full(self, rel: str) -> str:
@@ -139,7 +140,9 @@ class ClockRunner:
 
     def cancel(self, reason: str) -> None:
         """Stop the run from outside (another thread): the clock publishes ``Stop(ok=False)``
-        with ``reason`` at its next wait, as for any fault (e.g. a node failed while starting)."""
+        with ``reason`` at its next wait, as for any fault (e.g. a node failed while starting,
+        or the user interrupted the run: the caller reports that, so it is logged at info)."""
+        self._cancelled = reason
         self._queue.put(("cancel", reason, b""))
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
@@ -216,7 +219,7 @@ class ClockRunner:
                 code = 0
             except (NodeFault, ProtocolError, TimeoutError) as err:
                 self.error = str(err)
-                log.error("%s", err)
+                (log.info if str(err) == self._cancelled else log.error)("%s", err)
                 self._publish(keys.stop(), self._stop(ok=False, reason=str(err)))
                 code = 3
             self._wait_for_exit(timeout=self.spec.round_timeout_s)
