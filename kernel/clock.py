@@ -24,7 +24,10 @@ from core.errors import NodeFault, ProtocolError
 from core.rounds import Participation, RoundPlanner, merge_dropped
 from core.time import TICKS_PER_UNIT, to_units
 
-__all__ = ["ClockSpec", "Interpreter", "RoundPlanner", "Pacer", "ClockRunner"]
+__all__ = ["ClockSpec", "Interpreter", "RoundPlanner", "Pacer", "ClockRunner", "INJECT_SOURCE"]
+
+INJECT_SOURCE = "inject"
+"""The only source the clock takes external requests from (``wncs inject``)."""
 
 Interpreter = Callable[[InjectRequest], tuple[str, BaseModel]]
 """Turns a validated external request into the message the clock stamps (run-relative key and
@@ -161,6 +164,10 @@ class ClockRunner:
         as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
         try:
             env = codec.decode_envelope(payload)
+            if env.run != self.run_id:
+                raise SchemaError(f"request of run {env.run!r} on this run's key")
+            if env.src != INJECT_SOURCE:
+                raise SchemaError(f"request from {env.src!r}, expected {INJECT_SOURCE!r}")
             rel, body = self.interpret(codec.decode_body(env, InjectRequest))
         except (SchemaError, ValueError) as err:
             log.warning("clock: dropping injected request: %s", err)
@@ -304,6 +311,8 @@ class ClockRunner:
                     continue
                 try:
                     env = codec.decode_envelope(payload)  # type: ignore[arg-type]
+                    if env.run != self.run_id:
+                        raise SchemaError(f"Done of run {env.run!r} on this run's key")
                     done = codec.decode_body(env, Done)
                 except SchemaError as err:
                     log.warning("clock: dropping invalid Done on %s: %s", key, err)

@@ -37,6 +37,11 @@ __all__ = ["NodeContext", "BusNode"]
 
 log = logging.getLogger(__name__)
 
+_AHEAD_LIMIT = 100_000
+"""Rounds a data message may be ahead of the node's last tick and still be kept for its round
+(a node that sits rounds out can see a later round's data before the ticks in between; nothing
+legitimate is this far ahead)."""
+
 
 @dataclass
 class NodeContext:
@@ -147,6 +152,8 @@ class BusNode:
                 env = codec.decode_envelope(payload)
                 if env.src != "clock":
                     raise SchemaError(f"control message from {env.src!r}, expected 'clock'")
+                if env.run != self.run_id:
+                    raise SchemaError(f"control message of run {env.run!r} on this run's key")
                 if rel == keys.stop():
                     stop = codec.decode_body(env, Stop)
                     self.on_stop(stop)
@@ -237,6 +244,8 @@ class BusNode:
             now = self._last_tick
             if env.round < now - 1 or (env.round == now - 1 and self._collected):
                 raise SchemaError(f"stale message of round {env.round} in round {now}")
+            if env.round > now + _AHEAD_LIMIT:  # a forged far future must not fill our memory
+                raise SchemaError(f"message of round {env.round} far ahead of round {now}")
         except SchemaError as err:
             self._reject(rel, str(err))
             return

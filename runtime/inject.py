@@ -25,7 +25,7 @@ from bus_schemas.errors import SchemaError
 from core.errors import ConfigError
 from gateway.topology import Topology, parse_event
 from kernel.bus import put_when_heard
-from kernel.clock import Interpreter
+from kernel.clock import INJECT_SOURCE, Interpreter
 from runtime.artefacts import SCENARIO_FILE
 from runtime.scenario import Scenario, load_scenario
 
@@ -138,7 +138,7 @@ def build_request(
 
 def send(endpoint: str, run_id: str, request: InjectRequest, *, timeout: float = 10.0) -> None:
     """Publish the request to the run's clock once the clock is listening."""
-    payload = codec.encode(run=run_id, src="inject", seq=0, round=0, t=0, body=request)
+    payload = codec.encode(run=run_id, src=INJECT_SOURCE, seq=0, round=0, t=0, body=request)
     if not put_when_heard(endpoint, keys.full(run_id, keys.inject()), payload, timeout=timeout):
         raise ConfigError(f"no clock of run {run_id!r} is listening at {endpoint}")
 

@@ -198,6 +198,42 @@ def test_invalid_messages_are_dropped_counted_and_harmless(tmp_path, benchmark_r
     assert_same_traces(traces(summary), traces(benchmark_run[1]), atol=0.0)
 
 
+def test_forged_control_messages_and_requests_change_nothing(tmp_path, benchmark_run):
+    """From an outside client on the run's router (issue 19, item 2): a set-point request from
+    another source than ``wncs inject``, one stamped with another run id, a Done, a tick and a
+    stop of another run on this run's keys. The clock and the nodes drop them all: the run ends
+    normally with the clean run's traces (the set point of 10 is never applied)."""
+    proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0")
+    run_id = info["run_id"]
+    session = open_client(info["endpoint"])
+
+    def env(src: str, run: str, body: dict, round_: int = 0) -> bytes:
+        head = {"v": 1, "run": run, "src": src, "seq": 7, "round": round_, "t": 0}
+        return msgpack.packb({**head, "body": body})
+
+    request = {"setpoint": {"loop": "level", "value": 10.0}}
+    forged = [
+        (keys.inject(), env("intruder", run_id, request)),
+        (keys.inject(), env("inject", "r-other", request)),
+        (keys.done("reactor"), env("reactor", "r-other", {"round": 1, "node": "reactor"})),
+        (keys.tick(), env("clock", "r-other", {"round": 99, "t": 10**9, "expected": {}})),
+        (
+            keys.stop(),
+            env("clock", "r-other", {"ok": False, "reason": "forged", "round": 1, "t": 0}),
+        ),
+    ]
+    try:
+        wait_for_virtual_time(session, info, proc, 2_000_000)
+        for rel, raw in forged:
+            session.put(keys.full(run_id, rel), raw)
+        out, err = proc.communicate(timeout=300)
+    finally:
+        session.close()
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert_same_traces(traces(summary), traces(benchmark_run[1]), atol=0.0)
+
+
 def test_bad_scenario_is_refused_before_anything_starts(tmp_path):
     bad = tmp_path / "bad.yaml"
     text = BENCHMARK.read_text().replace("tau_s: 0.1", "tau_s: -0.1", 1)
