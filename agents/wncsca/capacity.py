@@ -19,7 +19,7 @@ from bus_schemas import TschCapacity
 from core.time import to_ticks
 from gateway.tsch.schedule import Cell, Schedule, schedule_for
 
-__all__ = ["Manager", "read_capacity", "describe"]
+__all__ = ["Manager", "read_capacity", "describe", "path_ticks"]
 
 
 def read_capacity(raw: Any) -> TschCapacity | None:
@@ -31,6 +31,21 @@ def read_capacity(raw: Any) -> TschCapacity | None:
         A malformed entry (the caller refuses the proposal).
     """
     return None if raw is None else TschCapacity.model_validate(raw)
+
+
+def path_ticks(
+    paths: Mapping[str, Any], periods: Mapping[str, float], link_periods: Mapping[str, float]
+) -> dict[str, int]:
+    """Path name (``<loop>.<direction>``, ``<link>.link``) -> its packets' period in ticks: a
+    loop's sensor and actuator paths at the loop's period, a link at its own (time units);
+    paths without one are left out."""
+    out: dict[str, int] = {}
+    for path in paths:
+        name, _, direction = path.rpartition(".")
+        period = link_periods.get(name) if direction == "link" else periods.get(name)
+        if period is not None:
+            out[path] = to_ticks(period)
+    return out
 
 
 class Manager:
@@ -46,16 +61,10 @@ class Manager:
     def schedule(self, periods: Mapping[str, float], link_periods: Mapping[str, float]) -> Schedule:
         """The schedule for loops sampled at ``periods`` and links sent at ``link_periods``
         (time units): a loop's sensor and actuator paths at its period."""
-        ticks: dict[str, int] = {}
-        for path in self.routes:
-            name, _, direction = path.rpartition(".")
-            period = link_periods.get(name) if direction == "link" else periods.get(name)
-            if period is not None:
-                ticks[path] = to_ticks(period)
         cap = self.capacity
         return schedule_for(
             self.routes,
-            ticks,
+            path_ticks(self.routes, periods, link_periods),
             slot_ticks=cap.slot_ticks,
             length=cap.length,
             channels=cap.channel_offsets,

@@ -33,7 +33,7 @@ from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
-from agents.wncsca.capacity import Manager, describe, read_capacity
+from agents.wncsca.capacity import Manager, describe, path_ticks, read_capacity
 from agents.wncsca.chance import LoopLaw
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.decision import (
@@ -490,6 +490,11 @@ class Coordinator:
             nodes = projected_lifetime(topology, routes, per, cfg.energy)
             return min(e.lifetime_s for e in nodes.values()) / 3600.0
 
+        return self._lifetimes(lifetime)
+
+    def _lifetimes(self, lifetime: Any) -> dict[str, Any]:
+        """The network lifetime (h) under the control periods against the benchmark periods,
+        by ``lifetime(periods)``; ``None`` where infinite."""
         assigned, bench = lifetime(self.control_periods), lifetime(self.benchmark)
         finite = math.isfinite(assigned) and math.isfinite(bench) and bench > 0
         return {
@@ -519,23 +524,12 @@ class Coordinator:
             return None
 
         def lifetime(periods: Mapping[str, float]) -> float:
-            ticks = {}
-            for path in routes:
-                name, _, direction = path.rpartition(".")
-                period = self.link_periods.get(name) if direction == "link" else periods.get(name)
-                if period is not None:
-                    ticks[path] = to_ticks(period)
             assert carrier.tsch is not None
+            ticks = path_ticks(routes, periods, self.link_periods)
             hours = carrier.tsch.lifetimes_h(routes, ticks)
             return min((h for h in hours.values() if h is not None), default=math.inf)
 
-        assigned, bench = lifetime(self.control_periods), lifetime(self.benchmark)
-        finite = math.isfinite(assigned) and math.isfinite(bench) and bench > 0
-        return {
-            "lifetime_h_assigned": assigned if math.isfinite(assigned) else None,
-            "lifetime_h_benchmark": bench if math.isfinite(bench) else None,
-            "ratio": assigned / bench if finite else None,
-        }
+        return self._lifetimes(lifetime)
 
 
 def _with_links(decision: Decision, links: list[LinkVerdict]) -> Decision:

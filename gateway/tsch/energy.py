@@ -36,7 +36,7 @@ from collections.abc import Mapping
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["SLOT_KINDS", "RadioCharges", "RADIOS", "charge_uC", "lifetime_s"]
+__all__ = ["SLOT_KINDS", "RadioCharges", "RADIOS", "charge_uC"]
 
 SLOT_KINDS = ("tx_ack", "tx_noack", "rx_ack", "idle", "sleep")
 """The slot types a node is charged for: TxDataRxAck, TxDataRxAckNone, RxDataTxAck,
@@ -96,16 +96,3 @@ RADIOS: dict[str, RadioCharges] = {
 def charge_uC(radio: RadioCharges, counts: Mapping[str, int], slot_s: float) -> float:
     """Charge of ``counts`` slots of each kind (:data:`SLOT_KINDS`) with ``radio``."""
     return sum(n * radio.charge_uC(kind, slot_s) for kind, n in sorted(counts.items()))
-
-
-def lifetime_s(
-    charge_per_frame_uC: Mapping[str, float], frame_s: float, capacity_mAh: Mapping[str, float]
-) -> dict[str, float]:
-    """Projected lifetime of each node whose battery holds ``capacity_mAh[node]`` when it
-    spends ``charge_per_frame_uC[node]`` every slotframe of ``frame_s`` seconds (``inf``:
-    nothing spent)."""
-    out = {}
-    for node, q in charge_per_frame_uC.items():
-        capacity_uC = capacity_mAh[node] * 3.6e6
-        out[node] = float("inf") if q <= 0 else capacity_uC / q * frame_s
-    return out

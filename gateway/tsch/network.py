@@ -520,13 +520,17 @@ class TschNetwork:
         nothing)."""
         schedule = self.plan(routes, periods)
         rate = self.frame_charge_uC(0, schedule, routes, periods)
-        frame_s = self.frame_ticks / TICKS_PER_UNIT * self.seconds_per_unit
         out: dict[str, float | None] = {}
         for node in sorted(self.topology.nodes):
             cap = self.capacity_mAh(node)
-            q = rate[node]
-            out[node] = None if cap is None or q <= 0 else cap * 3.6e6 / q * frame_s / 3600.0
+            out[node] = None if cap is None else self._hours(cap, rate[node])
         return out
+
+    def _hours(self, left_mAh: float, frame_uC: float) -> float | None:
+        """Hours until ``left_mAh`` is spent at ``frame_uC`` per slotframe (``None``: never)."""
+        frame_s = self.frame_ticks / TICKS_PER_UNIT * self.seconds_per_unit
+        per_s = frame_uC / 3.6e6 / frame_s  # mAh per second
+        return left_mAh / per_s / 3600.0 if per_s > 0 else None
 
     def energy(self, t: int) -> dict[str, dict[str, float | None]]:
         """Per node at ``t``: charge spent (mAh), battery left (%) and projected lifetime (h) at
@@ -534,7 +538,6 @@ class TschNetwork:
         nothing)."""
         spent = self.charge_mAh(t)
         rate = self.frame_charge_uC(t)
-        frame_s = self.frame_ticks / TICKS_PER_UNIT * self.seconds_per_unit
         out: dict[str, dict[str, float | None]] = {}
         for node in sorted(self.topology.nodes):
             cap = self.capacity_mAh(node)
@@ -542,12 +545,10 @@ class TschNetwork:
                 out[node] = {"energy_mAh": spent[node], "battery_pct": 100.0, "lifetime_h": None}
                 continue
             left = max(cap - spent[node], 0.0)
-            per_s = rate[node] / 3.6e6 / frame_s  # mAh per second
-            life = left / per_s / 3600.0 if per_s > 0 else None
             out[node] = {
                 "energy_mAh": spent[node],
                 "battery_pct": 100.0 * left / cap,
-                "lifetime_h": life,
+                "lifetime_h": self._hours(left, rate[node]),
             }
         return out
 

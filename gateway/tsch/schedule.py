@@ -217,8 +217,6 @@ def _place(
     cycle of ``length * every`` slots), and its absolute slot."""
     length = occupancy.length
     for pos in range(position, position + length * every):
-        if every == 1 and pos >= position + length:
-            break
         probe = Cell(pos % length, 0, tx, rx, every=every, phase=(pos // length) % every)
         channel = occupancy.fits(probe)
         if channel is not None:
@@ -274,14 +272,6 @@ def check_cells(
                         f"{where}[{i}]: node {sorted(common)[0]!r} is in two cells of slot "
                         f"{slot} (also {where}[{j}])"
                     )
-
-
-def links_of(cells: Iterable[Cell]) -> Mapping[tuple[str, str], list[Cell]]:
-    """Link ``(tx, rx)`` -> its cells, sorted."""
-    out: dict[tuple[str, str], list[Cell]] = defaultdict(list)
-    for c in sorted(cells):
-        out[c.link].append(c)
-    return dict(out)
 
 
 def grant(period: int, length: int) -> int:
