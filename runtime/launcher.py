@@ -21,7 +21,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -161,6 +161,7 @@ def launch(
     progress: TextIO | None = None,
     overrides: Sequence[str] = (),
     force: bool = False,
+    on_start: Callable[[Path], None] | None = None,
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
@@ -168,6 +169,8 @@ def launch(
     mapping before validation; each node process gets them too, so all load the same scenario.
     ``out`` must not hold a run already (its ``run.json``) unless ``force``, which replaces it;
     an ``out`` that cannot be written is refused too, before anything starts.
+    ``on_start(out)`` is called once ``out/run.json`` names the run's router (a bus engine),
+    before the nodes start: ``wncs run --dashboard`` starts its dashboard there.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -209,6 +212,7 @@ def launch(
         realtime=realtime,
         progress=progress,
         wall0=wall0,
+        on_start=on_start,
     )
 
 
@@ -244,12 +248,15 @@ def _launch_bus(
     realtime: float | None,
     progress: TextIO | None,
     wall0: float,
+    on_start: Callable[[Path], None] | None,
 ) -> RunResult:
     run_id = run_info["run_id"]
     router, locators = open_router(listen or DEFAULT_LISTEN)
     endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
     run_info["endpoint"] = endpoint
     _write_json(out / RUN_FILE, run_info)
+    if on_start is not None:
+        on_start(out)
     prog = _Progress(run_id, scenario, progress)
     subs = [
         router.declare_subscriber(keys.full(run_id, keys.tick()), prog.on_tick),

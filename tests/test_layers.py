@@ -10,8 +10,8 @@ Lowest first; a module imports only from its own layer or below::
     4 scenario      runtime/scenario.py: the YAML schema; runtime/specs.py: one spec per node;
                     runtime/yaml_positions.py, runtime/overrides.py: reading the file, --set
     5 application   runtime/ (CLI, launcher, engines, reports, inject, assess), wncs/ (the
-                    notebook API) and the commands that live beside their core
-                    (agents/monitor/command.py, ...)
+                    notebook API), dashboard/ (the live web page) and the commands that live
+                    beside their core (agents/monitor/command.py, ...)
 
 and: only the kernel imports zenoh; only the codec imports msgpack; no import inside a function
 except optional heavy ones (matplotlib). ``test_the_rules_catch_*`` checks that each rule fails
@@ -37,6 +37,7 @@ PACKAGES = (
     "kernel",
     "runtime",
     "wncs",
+    "dashboard",
 )
 
 BUS, CORE, CORES, BEHAVIOURS, KERNEL, SCENARIO, APPLICATION = 0, 1, 2, 3, 3, 4, 5
@@ -81,7 +82,7 @@ def layer(module: str) -> int:
         return KERNEL
     if module in SCENARIO_MODULES:
         return SCENARIO
-    if top in ("runtime", "wncs") or module in APPLICATION_MODULES:
+    if top in ("runtime", "wncs", "dashboard") or module in APPLICATION_MODULES:
         return APPLICATION
     if module.rsplit(".", 1)[-1] == "behaviour":
         return BEHAVIOURS

@@ -1,0 +1,82 @@
+"""``wncs dashboard RUN_DIR`` and the dashboard ``wncs run --dashboard`` starts beside a run.
+
+The dashboard serves on 127.0.0.1 unless ``--host`` says otherwise: anyone who can reach the
+page can put requests into the run, so another interface is served only when asked, with a
+warning.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import subprocess
+import sys
+from pathlib import Path
+
+from dashboard.server import Dashboard, serve
+
+__all__ = ["DEFAULT_PORT", "add_arguments", "run", "spawn"]
+
+DEFAULT_PORT = 8765
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dir", metavar="RUN_DIR", help="run directory (live or finished)")
+    parser.add_argument(
+        "--port", type=_port, default=DEFAULT_PORT, help=f"port (default {DEFAULT_PORT}; 0: any)"
+    )
+    parser.add_argument(
+        "--host", default="127.0.0.1", help="interface to serve on (default 127.0.0.1)"
+    )
+    parser.add_argument(
+        "--poll", type=float, default=0.1, metavar="SECONDS", help="history poll period"
+    )
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"not a port number: {port} (0..65535)")
+    return port
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve the dashboard of ``args.dir`` until interrupted."""
+    dashboard = Dashboard(Path(args.dir), poll_s=args.poll)
+    if not _is_loopback(args.host):
+        print(
+            f"wncs dashboard: warning: serving on {args.host}: anyone who reaches this port can "
+            "watch the run and put requests into it",
+            file=sys.stderr,
+        )
+
+    def ready(url: str) -> None:
+        what = "live run" if dashboard.live else "finished run (replay)"
+        print(f"dashboard of the {what} {args.dir}: {url}", flush=True)
+
+    try:
+        serve(dashboard, host=args.host, port=args.port, on_ready=ready)
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def spawn(run_dir: Path, port: int) -> subprocess.Popen[bytes]:
+    """Start ``wncs dashboard RUN_DIR --port PORT`` as a child process (``wncs run
+    --dashboard``): the run never shares a process, or a GIL, with its observer."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "runtime.cli", "dashboard", str(run_dir), "--port", str(port)],
+        stdin=subprocess.DEVNULL,
+    )
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
