@@ -5,11 +5,13 @@
 ``wncs report DIR``                    redraw a run's plots and print its figures
 ``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
 ``wncs inject DIR EVENT [KEY=VALUE ...]``  a reconfiguration, mode or set point into a live run
+``wncs dashboard DIR``                 watch a live run in the browser, act on it, replay it
 ``wncs assess DATA --primary COL ...``  Harris index and cascade opportunities of a loop (seed 004)
 ``wncs validate SCENARIO ...``         check scenario files without running them
 ``wncs schema [--out FILE]``           the scenario files' JSON Schema, for editors
 ``wncs sweep SCENARIO --grid P=a:b:n --out DIR``  a grid of overrides on the direct engine
 ``wncs export RUN_DIR --csv|--parquet``  every artefact of a run as CSV or Parquet files
+``wncs scale N --out FILE``            write a scenario of N independent loops over WSN paths
 
 ``run``, ``node``, ``validate`` and ``sweep`` take ``--set dotted.path=VALUE`` (repeatable,
 :mod:`runtime.overrides`): the value, parsed as YAML, replaces the field in the file's mapping
@@ -26,8 +28,10 @@ import argparse
 import json
 import logging
 import signal
+import subprocess
 import sys
 import textwrap
+from collections.abc import Callable
 from importlib.metadata import version
 from pathlib import Path
 from typing import Any
@@ -35,6 +39,7 @@ from typing import Any
 from agents.monitor.command import add_assess_arguments, run_from_args
 from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
+from dashboard import command as dashboard_command
 from kernel.bus import init_zenoh_log, open_client
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
@@ -43,6 +48,7 @@ from runtime.inject import build_request, send
 from runtime.launcher import INTERRUPTED, launch
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.report import load_run, write_plots, write_summary
+from runtime.scale import PLANTS, write_scale
 from runtime.scenario import Scenario, load_scenario
 from runtime.sweep import SWEEP_CSV, SWEEP_PARQUET, SWEEP_PNG, parse_axis, sweep
 
@@ -86,6 +92,11 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "wncs inject runs/wncs mode steady_state",
         "wncs inject runs/wncs setpoint level=0.72",
     ),
+    "dashboard": (
+        "wncs dashboard runs/wncs",
+        "wncs dashboard runs/wncs --port 8800",
+        "wncs run scenarios/jcstr_wncs.yaml --out runs/live --realtime 0.5 --dashboard",
+    ),
     "assess": (
         "wncs assess loop.csv --primary PV --setpoint SP --secondary T2,T3 --delays 5,2,6,1",
         "wncs assess runs/cr --primary temperature --secondary reactor.y2,reactor.y3"
@@ -111,6 +122,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         " --grid nodes.network.topology.retry_limit=2,3 --out runs/sweep_wsn --jobs 2",
         "wncs sweep scenarios/tank_sim.yaml --grid loops.level.tau_s=0.05,0.1,0.2"
         " --set loops.level.settling_band=0.02 --out runs/sweep_tank",
+    ),
+    "scale": (
+        "wncs scale 50 --out runs/scale50.yaml",
+        "wncs scale 20 --plant jcstr --per-gateway 4 --out runs/jcstr20.yaml",
     ),
 }
 """Per subcommand (and ``wncs`` itself), the commands its help ends with: shipped scenarios only,
@@ -209,6 +224,17 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS_PER_UNIT",
         help="pace virtual time against the wall clock",
     )
+    run.add_argument(
+        "--dashboard",
+        nargs="?",
+        type=int,
+        const=dashboard_command.DEFAULT_PORT,
+        default=None,
+        metavar="PORT",
+        help=f"serve the live dashboard on 127.0.0.1:PORT (default "
+        f"{dashboard_command.DEFAULT_PORT}) while the run goes on, and the finished run after "
+        "it, until Ctrl-C; best with --realtime",
+    )
     run.add_argument("--quiet", action="store_true", help="print only errors")
     run.add_argument(
         "--force",
@@ -294,6 +320,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--listen", default=None, metavar="ENDPOINT", help="router endpoint, instead of DIR"
     )
     inject.add_argument("--run-id", default=None, help="run id, with --listen")
+
+    dashboard = _command(
+        sub,
+        "dashboard",
+        "watch a live run in the browser, act on it, replay it",
+        "Serve a web page on 127.0.0.1 that shows a run as it goes on (its history, read as "
+        "the historian commits it): the WSN topology with batteries, link quality and the "
+        "routes in force; each loop's output against its set point with the delivered samples "
+        "and the moves; each path's delay and losses; the sampling periods with the open "
+        "intervals shaded; the coordination agent's decisions with their reasons; invalid "
+        "messages dropped; simulated against wall time; the TSCH schedule. Its buttons send "
+        "what wncs inject sends. A finished run is replayed with a time slider.",
+    )
+    dashboard_command.add_arguments(dashboard)
 
     assess = _command(
         sub,
@@ -382,6 +422,27 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="output directory (default RUN_DIR/csv or RUN_DIR/parquet)",
     )
+    scale = _command(
+        sub,
+        "scale",
+        "write a scenario of N independent loops over WSN paths",
+        "Write a scenario file of N independent loops, each its own plant and controller, every "
+        "sensor two hops from a gateway over a lossy WSN, with set-point steps staggered across "
+        "the loops (tank: seed 002's tank and non-linear PI, steps of 20 mm, 60 s; jcstr: N/2 "
+        "reactors of seed 000's benchmark, 6 pu). Loops are grouped into areas of --per-gateway "
+        "loops, each with its own gateway node. The file is validated before it is written; "
+        "run it with wncs run.",
+    )
+    scale.add_argument("n", type=int, metavar="N", help="number of loops (jcstr: even)")
+    scale.add_argument("--out", required=True, metavar="FILE", help="scenario file to write")
+    scale.add_argument("--plant", choices=PLANTS, default="tank", help="plant of every loop")
+    scale.add_argument(
+        "--per-gateway", type=int, default=10, metavar="K", help="loops per gateway (default 10)"
+    )
+    scale.add_argument(
+        "--end-time", type=_positive_float, default=None, metavar="T", help="end of the run"
+    )
+    scale.add_argument("--seed", type=int, default=0, help="the scenario's seed (default 0)")
     return parser
 
 
@@ -404,6 +465,30 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt  # unwinds the launcher, which stops its children
 
     signal.signal(signal.SIGTERM, _terminate)
+    if args.dashboard is None:
+        return _run(args, None)
+    if args.engine == "direct":
+        raise ConfigError(
+            "--dashboard: the direct engine has no history to watch; use --engine threads or "
+            "processes"
+        )
+    children: list[subprocess.Popen[bytes]] = []
+    code = INTERRUPTED
+    try:
+        code = _run(args, lambda out: children.append(dashboard_command.spawn(out, args.dashboard)))
+        if children and children[0].poll() is None:
+            print("wncs run: the dashboard shows the finished run; Ctrl-C to stop", flush=True)
+            children[0].wait()
+        return code
+    except KeyboardInterrupt:
+        return code
+    finally:
+        for child in children:
+            child.terminate()
+            child.wait(timeout=10)
+
+
+def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> int:
     stream = sys.stdout if (sys.stdout.isatty() and not args.quiet) else None
     result = launch(
         args.scenario,
@@ -415,6 +500,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         progress=stream,
         overrides=args.set,
         force=args.force,
+        on_start=on_start,
     )
     if result.code == INTERRUPTED:
         where = f"; partial results in {args.out}" if result.summary else ""
@@ -580,6 +666,27 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_scale(args: argparse.Namespace) -> int:
+    try:
+        scenario = write_scale(
+            args.n,
+            args.out,
+            plant=args.plant,
+            per_gateway=args.per_gateway,
+            end_time=args.end_time,
+            seed=args.seed,
+        )
+    except ValueError as err:
+        raise ConfigError(str(err)) from err
+    except OSError as err:
+        raise ConfigError(f"--out {args.out}: cannot write: {err.strerror or err}") from err
+    print(
+        f"wrote {args.out}: {len(scenario.loops)} loops, {len(scenario.nodes)} nodes, "
+        f"{len(scenario.gateways())} gateways, {scenario.end_time:g} {scenario.time_unit}"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -599,6 +706,8 @@ def main(argv: list[str] | None = None) -> int:
             "schema": _cmd_schema,
             "sweep": _cmd_sweep,
             "export": _cmd_export,
+            "scale": _cmd_scale,
+            "dashboard": dashboard_command.run,
         }
         return commands[args.command](args)
     except ConfigError as err:
