@@ -14,6 +14,7 @@ from kernel.node import BusNode, NodeContext
 from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
 from runtime.inject import interpreter
+from runtime.ownership import publishers
 from runtime.scenario import Scenario
 
 __all__ = ["bus_node", "check_node", "clock_spec", "clock_runner"]
@@ -34,6 +35,7 @@ def bus_node(
         participants=frozenset(scenario.participants()),
         round_timeout_s=scenario.clock.round_timeout_s,
         options=dict(options or {}),
+        publishers=publishers(scenario),
     )
     if name == "historian":
         return HistorianNode(ctx, scenario_name=scenario.name, seed=scenario.seed)

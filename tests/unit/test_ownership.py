@@ -1,0 +1,53 @@
+"""Key ownership (issue 19): every message every scenario publishes comes from an owner of its
+key, as :func:`runtime.ownership.publishers` derives them from the scenario."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from core.time import to_ticks
+from runtime.direct import behaviour_of
+from runtime.engine import DirectEngine, Message
+from runtime.ownership import CLOCK, owners_of, publishers
+from runtime.scenario import load_scenario
+
+SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
+
+
+def _published(path: Path, end_time: float) -> set[tuple[str, str]]:
+    scenario = load_scenario(path)
+    scenario = scenario.model_copy(update={"end_time": min(scenario.end_time, end_time)})
+    seen: set[tuple[str, str]] = set()
+
+    def record(messages: list[Message]) -> None:
+        seen.update((m.key, m.src) for m in messages)
+
+    engine = DirectEngine(
+        {n: behaviour_of(scenario, n) for n in sorted(scenario.nodes)},
+        end=to_ticks(scenario.end_time),
+        max_microsteps=scenario.clock.max_microsteps,
+        on_round=record,
+    )
+    engine.run()
+    return seen
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_every_published_message_comes_from_an_owner_of_its_key(path):
+    table = publishers(load_scenario(path))
+    seen = _published(path, end_time=float("inf"))
+    assert seen, "the scenario published nothing"
+    strays = sorted((key, src) for key, src in seen if src not in owners_of(table, key))
+    assert strays == []
+
+
+def test_owners_of_a_small_scenario_by_hand():
+    table = publishers(load_scenario(SCENARIOS[0].parent / "jcstr_benchmark.yaml"))
+    assert owners_of(table, "clock/tick") == frozenset()
+    assert CLOCK in owners_of(table, "ops/setpoint/level")
+    assert table["historian"] == ()
+    for key, owners in table.items():
+        assert all(not p.startswith("clock/") for p in owners), key
