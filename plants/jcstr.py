@@ -120,6 +120,39 @@ class JCSTR:
         d_temp_j = (f_jin * (p.T_jin - temp_j) - q) / p.V_j
         return (dh, d_temp, d_temp_j)
 
+    def batch_params(self) -> tuple[float, ...]:
+        """The constants :meth:`rhs_batch` takes, one value each."""
+        p = self.params
+        return (p.F_in, p.A_B, self._alpha, self._pi_d, p.T_in, p.T_jin, p.V_j)
+
+    @staticmethod
+    def rhs_batch(
+        p: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]],
+        u: Sequence[NDArray[np.float64]],
+    ) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`rhs_tuple` on many plants at once: ``p`` (:meth:`batch_params`), ``x`` and
+        ``u`` hold one array per constant, state and input, one element per plant. The same
+        operations in the same order, element by element (IEEE float64), so each element is
+        bit-identical to :meth:`rhs_tuple` (the agent's batched checks,
+        ``agents/wncsca/batch.py``)."""
+        f_in, a_b, alpha, pi_d, t_in, t_jin, v_j = p
+        h, temp, temp_j = x
+        f_out, f_jin = u
+        dh = (f_in - f_out) / a_b
+        if (h <= 0.0).any():
+            dh = np.where((h <= 0.0) & (dh < 0.0), 0.0, dh)
+        h_eff = np.maximum(h, H_MIN)  # rhs_tuple's choice for every non-NaN level
+        q = alpha * (a_b + pi_d * h_eff) * (temp_j - temp)
+        d_temp = (f_in * (t_in - temp) + q) / (a_b * h_eff)
+        d_temp_j = (f_jin * (t_jin - temp_j) - q) / v_j
+        return (dh, d_temp, d_temp_j)
+
+    @staticmethod
+    def outputs_batch(x: Sequence[NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`outputs` of many plants at once (one array per state)."""
+        return (x[0], x[1])
+
     def outputs(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Measured outputs ``(H, T)``."""
         return np.array((x[0], x[1]), dtype=float)

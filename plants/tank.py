@@ -57,7 +57,7 @@ cannot drain). A step ending below zero is thus possible only by the RK4 combina
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import control
 import numpy as np
@@ -115,6 +115,31 @@ class Tank:
         if h > 0.0:
             return np.array((inflow - self._a * math.sqrt(h),))
         return np.array((inflow if inflow > 0.0 else 0.0,))  # empty: cannot drain further
+
+    def batch_params(self) -> tuple[float, ...]:
+        """The constants :meth:`rhs_batch` takes, one value each."""
+        return (self._b, self._a, self._u_min, self._u_max)
+
+    @staticmethod
+    def rhs_batch(
+        p: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]],
+        u: Sequence[NDArray[np.float64]],
+    ) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`rhs` on many tanks at once: ``p`` (:meth:`batch_params`), ``x`` and ``u`` hold
+        one array per constant, state and input, one element per tank; the same operations
+        element by element (the agent's batched checks, ``agents/wncsca/batch.py``)."""
+        b, a, u_min, u_max = p
+        (h,) = x
+        cmd = np.where(u[0] < u_min, u_min, np.where(u[0] > u_max, u_max, u[0]))
+        inflow = b * cmd - u[1] if len(u) > 1 else b * cmd
+        full = inflow - a * np.sqrt(np.where(h > 0.0, h, 0.0))
+        return (np.where(h > 0.0, full, np.where(inflow > 0.0, inflow, 0.0)),)
+
+    @staticmethod
+    def outputs_batch(x: Sequence[NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`outputs` of many tanks at once (one array per state)."""
+        return (np.where(x[0] > 0.0, x[0], 0.0),)
 
     def outputs(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Measured level ``(h,)`` (never below zero)."""

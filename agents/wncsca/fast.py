@@ -81,6 +81,7 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from agents.wncsca.assignment import Assignment, Trial
+from agents.wncsca.batch import BatchTrials
 from agents.wncsca.model import LoopModel
 from controllers.pi import PIConfig
 from controllers.registry import uses_feedforward
@@ -930,6 +931,7 @@ class _Solver:
     alternations: int = 0
     checked: list[tuple[dict[str, float], dict[str, float], bool]] = field(default_factory=list)
     history: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    batch: BatchTrials | None = None
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -1087,21 +1089,30 @@ class _Solver:
         return choice, best[2]
 
     # -- the non-linear checks ------------------------------------------------------------------
+    def nonlinear(self, periods: Mapping[str, float]) -> dict[str, float]:
+        """Overshoots of ``periods`` on the non-linear model: the batch's (the engine's numbers,
+        :class:`agents.wncsca.batch.BatchTrials`) when the solver has one, else the engine's
+        (:meth:`LoopModel.evaluate`)."""
+        if self.batch is None:
+            return dict(self.model.evaluate(periods, self.delays).overshoot_pct)
+        row = self.batch.overshoots(self.vector(periods)[None, :], self.delays)[0]
+        return self.as_dict(row)
+
     def check(self, periods: Mapping[str, float]) -> tuple[dict[str, float], bool]:
-        """Overshoots of ``periods`` on the non-linear model, traced; remembers each loop's
-        (predicted, checked) pair for the calibration."""
+        """Overshoots of ``periods`` on the non-linear model (:meth:`nonlinear`), traced;
+        remembers each loop's (predicted, checked) pair for the calibration."""
         limit = self.model.config.overshoot_limit
-        ev = self.model.evaluate(periods, self.delays)
-        ok = ev.ok(limit)
+        os_pct = self.nonlinear(periods)
+        ok = all(v <= limit for v in os_pct.values())
         self.trace.append(
-            Trial(self.alternations, None, "verify", None, ev.periods, ev.overshoot_pct, ok)
+            Trial(self.alternations, None, "verify", None, dict(periods), dict(os_pct), ok)
         )
-        self.checked.append((dict(periods), dict(ev.overshoot_pct), ok))
+        self.checked.append((dict(periods), dict(os_pct), ok))
         predicted = self.predicted(periods)
         for n in self.loops:
-            if math.isfinite(ev.overshoot_pct[n]) and math.isfinite(predicted[n]):
-                self.history.setdefault(n, []).append((predicted[n], ev.overshoot_pct[n]))
-        return dict(ev.overshoot_pct), ok
+            if math.isfinite(os_pct[n]) and math.isfinite(predicted[n]):
+                self.history.setdefault(n, []).append((predicted[n], os_pct[n]))
+        return dict(os_pct), ok
 
     def calibrated_limits(self, target: float) -> dict[str, float]:
         """Per loop, the predicted overshoot that corresponds to ``target`` checked: the checked
@@ -1217,6 +1228,7 @@ def fast_periods(
     objective: str = "paper",
     weights: Mapping[str, float] | None = None,
     order: Sequence[str] | None = None,
+    batched: bool | None = None,
 ) -> Assignment:
     """Sampling periods by the fast method (module docstring), checked on the non-linear model.
 
@@ -1234,6 +1246,13 @@ def fast_periods(
         Energy cost of one sample of each loop (e.g. transmissions per delivery); default 1.
     order : sequence of str, optional
         Loops in the order they are searched; default ``model.config.order``, else sorted.
+    batched : bool, optional
+        Run the non-linear checks as one batch per check (every plant and step phase at once,
+        each plant's trials memoised: :class:`agents.wncsca.batch.BatchTrials`, the same
+        overshoots as the engine's, so the same choices) when every plant allows it; ``False``:
+        one engine trial per plant-wide check and phase (:meth:`LoopModel.evaluate`). Default:
+        batched when the loops are on more than one plant (on one plant a check is a few engine
+        trials, cheaper than a batch).
 
     Returns
     -------
@@ -1264,7 +1283,12 @@ def fast_periods(
     delays = {n: float(delays.get(n, 0.0)) for n in model.loops}
     limit = cfg.overshoot_limit
     predictor = LinearPredictor(model, delays)
-    solver = _Solver(model, delays, _Curves(predictor), order_l, w)
+    if batched is None:  # the batch pays off when a check would run several plants
+        batched = len({model.trials.scenario.loops[n].plant for n in model.loops}) > 1
+    batch = BatchTrials(model) if batched else None
+    if batch is not None and not batch.available:
+        batch = None
+    solver = _Solver(model, delays, _Curves(predictor), order_l, w, batch=batch)
 
     first = solver.paper(dict(model.benchmark), {n: limit for n in model.loops}, first=True)
     # when the raw predictions see nothing within the limit, the checks calibrate them from the
@@ -1293,14 +1317,14 @@ def fast_periods(
             f"no periods down to {cfg.resolution:g} keep every overshoot within {limit:g} % on "
             f"the non-linear check ({len(solver.checked)} checked)"
         )
-    ev = model.evaluate(final, delays)
+    os_final = solver.nonlinear(final)
     predicted = solver.predicted(final)
     return Assignment(
         method="fast",
         delays=delays,
         periods=final,
-        overshoot_pct=dict(ev.overshoot_pct),
-        feasible=feasible and ev.ok(limit),
+        overshoot_pct=os_final,
+        feasible=feasible and all(v <= limit for v in os_final.values()),
         converged=converged,
         alternations=solver.alternations,
         trace=solver.trace,
@@ -1312,10 +1336,12 @@ def fast_periods(
             "weights": w,
             "energy_rate": energy_rate(final, w),
             "predicted_pct": {n: _finite(v) for n, v in predicted.items()},
-            "bias_pct": {n: _finite(ev.overshoot_pct[n] - predicted[n]) for n in model.loops},
+            "bias_pct": {n: _finite(os_final[n] - predicted[n]) for n in model.loops},
             "predictions": predictor.predictions,
             "predicted_items": predictor.items,
             "checks": len(solver.checked),
+            "batched_trials": batch.items if batch is not None else 0,
+            "batches": batch.batches if batch is not None else 0,
         },
     )
 

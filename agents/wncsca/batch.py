@@ -1,0 +1,414 @@
+"""The agent's non-linear check, many trials at once (issue 20, item 5).
+
+:meth:`agents.wncsca.model.LoopModel.evaluate` runs one trial (one period vector, one step phase)
+on the ``direct`` engine: every node, message and round of the agent's model. The fast method
+checks many candidate period vectors; :class:`BatchTrials` simulates them together, with the state
+of every trial in numpy arrays, and gives the same overshoots.
+
+What is simulated
+-----------------
+A trial of :class:`agents.wncsca.trials.ScenarioTrials`: each judged loop's plant, its PI
+controller (:class:`controllers.pi.PI`: feedforward, forward or backward integral over the time
+between executions, clamping anti-windup, output limits) and a wired sensor path of constant
+delay ``tau_d``; the sensor is sampled at ``0, h, 2h, ...``; the sample taken at ``k h`` is
+used at ``k h + tau_d`` with the set points in force then (a step at that instant included), and
+the move holds from that instant (``tau_a = 0``); the test's steps are moved to their phase as
+:meth:`ScenarioTrials.scenario_at` does. Plants are independent in the model (every loop's
+plant is its own node), so a trial is one plant's loops: a check of a period vector is one trial
+per plant and phase, and a plant's trials are memoised by its loops' periods.
+
+Each plant is integrated as the plant node does (:mod:`plants.behaviour`): from stop to stop,
+the stops being its monitoring grid, its sensors' sampling instants and the instants its inputs
+change, each segment by :func:`plants.integrate.rk4_tuple`'s classical RK4 on ``ceil(span /
+max_step)`` equal steps. The batch does the same arithmetic on arrays (the plant's
+``rhs_batch``, element by element the operations of its ``rhs_tuple``), so the states, and the
+overshoots measured from the monitoring grid as :func:`core.record.loop_metrics` does, equal
+the engine's (``tests/unit/test_wncsca_batch.py`` compares them).
+
+Vectorisation
+-------------
+The trials of one plant model (every plant of that class in the model, every candidate period
+vector, every step phase) are the items of one batch. Every item has its own sorted list of
+stops (the union above, different per item since its periods and phases differ); the batch
+advances all items one stop per iteration (an item that has run out of stops repeats its last,
+a segment of zero span). Everything that does not depend on the state is computed for all
+``(stop, item)`` pairs before the loop: segment steps, the sample each execution uses, the set
+point and feedforward in force at each execution. The loop does, per stop, the RK4 steps of the
+segment on arrays of all items, and the PI law on the items that execute there. The cost is the
+number of stops (about 1000 for an 8 pu test on a 0.01 pu monitoring grid, whatever the number
+of items) times the numpy calls per stop; it grows slowly with the number of items, so a batch of
+hundreds of trials costs about what 20 engine trials do.
+
+A plant model takes part only if it offers ``batch_params``, ``rhs_batch`` and
+``outputs_batch`` (:class:`plants.jcstr.JCSTR`, :class:`plants.tank.Tank`), its loops are PI loops
+on sensors that are states, and it has no measurement noise; otherwise :attr:`BatchTrials.reason`
+says why and the fast method checks on the engine.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from agents.wncsca.model import LoopModel
+from controllers.pi import PIConfig
+from controllers.registry import uses_feedforward
+from core.time import TICKS_PER_UNIT, to_ticks
+
+__all__ = ["BatchTrials"]
+
+
+@dataclass(frozen=True)
+class _Plant:
+    """One plant of the model and its loops (sorted by name), as the batch needs them."""
+
+    name: str
+    kind: type
+    params: tuple[float, ...]
+    x0: tuple[float, ...]
+    u0: tuple[float, ...]
+    max_step: float
+    monitor: int
+    loops: tuple[str, ...]
+    out_idx: tuple[int, ...]  # sampled output of each loop
+    state_idx: tuple[int, ...]  # the same signal among the states (the record's)
+    act_idx: tuple[int, ...]
+    laws: tuple[PIConfig, ...]
+    feedforward: tuple[Any, ...]  # per loop, None without
+    initial: tuple[float, ...]
+    steps: tuple[tuple[int, int, float], ...]  # (tick, loop slot, value) in the test's order
+
+    def structure(self) -> tuple[Any, ...]:
+        """Plants with the same structure share a batch."""
+        return (
+            self.kind,
+            self.out_idx,
+            self.state_idx,
+            self.act_idx,
+            self.monitor,
+            self.max_step,
+            tuple(s[:2] for s in self.steps),
+        )
+
+
+class BatchTrials:
+    """The agent's trials of ``model``, simulated many at once (module docstring).
+
+    Parameters
+    ----------
+    model : LoopModel
+        The agent's model: its trial scenario, test and phase handling.
+    """
+
+    def __init__(self, model: LoopModel) -> None:
+        cfg = model.config
+        scenario = model.trials.scenario
+        self.loops: tuple[str, ...] = tuple(model.loops)
+        self.index = {n: k for k, n in enumerate(self.loops)}
+        self.end = to_ticks(scenario.end_time)
+        self.n_phases = 1 if cfg.phase == "fixed" else cfg.phases
+        self.shift = cfg.phase == "worst"
+        self.items = 0
+        self.batches = 0
+        self.reason = ""
+        self._memo: dict[tuple[str, tuple[int, ...], tuple[int, ...]], tuple[float, ...]] = {}
+        self.plants: dict[str, _Plant] = {}
+        by_plant: dict[str, list[str]] = {}
+        for n in self.loops:
+            by_plant.setdefault(scenario.loops[n].plant, []).append(n)
+        for pname, names in sorted(by_plant.items()):
+            node = scenario.nodes[pname]
+            pm = node.build()
+            missing = [
+                a for a in ("batch_params", "rhs_batch", "outputs_batch") if not hasattr(pm, a)
+            ]
+            if missing:
+                self.reason = f"plant {pname!r} ({type(pm).__name__}) has no {missing[0]}"
+                return
+            if any(v > 0 for v in getattr(node, "noise", {}).values()):
+                self.reason = f"plant {pname!r} has measurement noise"
+                return
+            names = sorted(names)
+            laws = []
+            for n in names:
+                law = scenario.nodes[scenario.loops[n].controller].law
+                if not isinstance(law, PIConfig):
+                    self.reason = f"loop {n!r} uses control law {law.type!r}, not 'pi'"
+                    return
+                laws.append(law)
+            sensors = [scenario.loops[n].sensor for n in names]
+            if any(s not in pm.state_names for s in sensors):
+                self.reason = f"plant {pname!r}: a sensor is not a state"
+                return
+            steps = tuple(
+                (to_ticks(s.t), names.index(s.loop), float(s.value))
+                for s in scenario.setpoints
+                if s.loop in names
+            )
+            self.plants[pname] = _Plant(
+                name=pname,
+                kind=type(pm),
+                params=tuple(float(v) for v in pm.batch_params()),
+                x0=tuple(float(node.x0[s]) for s in pm.state_names),
+                u0=tuple(float(node.u0[s]) for s in pm.input_names),
+                max_step=float(node.max_step),
+                monitor=to_ticks(node.monitor_period),
+                loops=tuple(names),
+                out_idx=tuple(pm.output_names.index(s) for s in sensors),
+                state_idx=tuple(pm.state_names.index(s) for s in sensors),
+                act_idx=tuple(pm.input_names.index(scenario.loops[n].actuator) for n in names),
+                laws=tuple(laws),
+                feedforward=tuple(
+                    scenario.feedforward(n) if uses_feedforward(law) else None
+                    for n, law in zip(names, laws, strict=True)
+                ),
+                initial=tuple(float(scenario.loops[n].setpoint) for n in names),
+                steps=steps,
+            )
+
+    @property
+    def available(self) -> bool:
+        """Whether every plant of the model can be batched (else :attr:`reason` says why)."""
+        return not self.reason
+
+    def overshoots(
+        self, periods: NDArray[np.float64], delays: Mapping[str, float]
+    ) -> NDArray[np.float64]:
+        """Worst-case overshoot (%) of every loop (columns in :attr:`loops` order; ``inf``:
+        diverged or no step) for each row of ``periods`` (rows x loops, time units), under the
+        control-path ``delays``: what :meth:`LoopModel.evaluate` gives, row by row."""
+        if not self.available:
+            raise ValueError(f"batched trials unavailable: {self.reason}")
+        rows = np.atleast_2d(np.asarray(periods, dtype=float))
+        ticks = np.rint(rows * TICKS_PER_UNIT).astype(np.int64)
+        if (ticks < 1).any():
+            raise ValueError("batched trials: a period is shorter than one tick")
+        dticks = {n: to_ticks(float(delays.get(n, 0.0))) for n in self.loops}
+        todo: dict[tuple[Any, ...], list[tuple[_Plant, tuple[int, ...]]]] = {}
+        keys = []
+        for plant in self.plants.values():
+            cols = [self.index[n] for n in plant.loops]
+            d = tuple(dticks[n] for n in plant.loops)
+            for r in ticks:
+                h = tuple(int(v) for v in r[cols])
+                key = (plant.name, h, d)
+                keys.append(key)
+                if key not in self._memo:
+                    group = todo.setdefault(plant.structure(), [])
+                    if (plant, h) not in group:
+                        group.append((plant, h))
+        for group in todo.values():
+            os_items = self._simulate(group, dticks)
+            for (plant, h), worst in zip(group, os_items, strict=True):
+                self._memo[(plant.name, h, tuple(dticks[n] for n in plant.loops))] = worst
+        out = np.zeros((len(rows), len(self.loops)))
+        k = 0
+        for plant in self.plants.values():
+            cols = [self.index[n] for n in plant.loops]
+            for r in range(len(rows)):
+                out[r, cols] = self._memo[keys[k]]
+                k += 1
+        return out
+
+    # -- one batch ---------------------------------------------------------------------------
+    def _simulate(
+        self, group: list[tuple[_Plant, tuple[int, ...]]], dticks: Mapping[str, int]
+    ) -> list[tuple[float, ...]]:
+        """Worst-case overshoot of each loop of each ``(plant, periods)`` of ``group`` (plants of
+        one structure), over the step phases."""
+        n_ph = self.n_phases
+        first = group[0][0]
+        n_loops = len(first.loops)
+        plants = [p for p, _ in group for _ in range(n_ph)]
+        B = len(plants)
+        self.items += B
+        self.batches += 1
+        ar = np.arange(B)
+        end = self.end
+        # -- per item: periods, delays, steps moved to the phase, set points per stretch
+        H = np.repeat(np.array([h for _, h in group], dtype=np.int64), n_ph, axis=0)
+        D = np.array([[dticks[n] for n in p.loops] for p in plants], dtype=np.int64)
+        phase = np.tile(np.arange(n_ph, dtype=np.int64), len(group))
+        n_steps = len(first.steps)
+        slots = np.array([st[1] for st in first.steps], dtype=np.int64)
+        t_test = np.array([st[0] for st in first.steps], dtype=np.int64)
+        values = np.array([[st[2] for st in p.steps] for p in plants]).reshape(B, n_steps)
+        if self.shift:
+            P = H[:, slots]
+            t_step = (t_test[None, :] // P) * P + (phase[:, None] * P) // n_ph
+        else:
+            t_step = np.repeat(t_test[None, :], B, axis=0)
+        order = np.argsort(t_step, axis=1, kind="stable")
+        t_sorted = np.take_along_axis(t_step, order, axis=1)
+        sp = np.zeros((B, n_steps + 1, n_loops))
+        sp[:, 0] = [p.initial for p in plants]
+        for st in range(n_steps):
+            sp[:, st + 1] = sp[:, st]
+            sp[ar, st + 1, slots[order[:, st]]] = values[ar, order[:, st]]
+        ubar = self._feedforward(plants, sp)
+        # -- per item: the sorted stops (monitoring grid, samples, executions), padded with end
+        parts = [np.repeat(np.arange(0, end + 1, first.monitor)[None, :], B, axis=0)]
+        parts.append(np.full((B, 1), end, dtype=np.int64))
+        for slot in range(n_loops):
+            k = np.arange(int(end // H[:, slot].min()) + 1, dtype=np.int64)[None, :]
+            times = k * H[:, slot, None]
+            parts.append(np.where(times <= end, times, end))
+            times = times + D[:, slot, None]
+            parts.append(np.where(times <= end, times, end))
+        cand = np.sort(np.concatenate(parts, axis=1), axis=1)
+        dup = np.zeros(cand.shape, dtype=bool)
+        dup[:, 1:] = cand[:, 1:] == cand[:, :-1]
+        cand = np.take_along_axis(cand, np.argsort(dup, axis=1, kind="stable"), axis=1)
+        counts = np.sum(~dup, axis=1)
+        L = int(counts.max())
+        valid = np.arange(L)[:, None] < counts[None, :]
+        S = np.where(valid, cand[:, :L].T, end)  # stops x items
+        T = S / TICKS_PER_UNIT  # as the engine converts: to_units(ticks)
+        # -- the RK4 steps of each segment [S[j], S[j + 1]] (rk4_tuple's arithmetic)
+        span = T[1:] - T[:-1]
+        n_sub = np.maximum(1, np.ceil(span / first.max_step - 1e-9)).astype(np.int64)
+        n_sub = np.where(span > 0.0, n_sub, 0)
+        h_seg = np.where(n_sub > 0, span / np.maximum(n_sub, 1), 0.0)
+        n_max = int(n_sub.max(initial=0))
+        sub_h = [np.where(n_sub > q, h_seg, 0.0) for q in range(n_max)]
+        sub_half = [0.5 * v for v in sub_h]
+        sub_sixth = [v / 6.0 for v in sub_h]
+        # -- executions: at stop j of item i, loop slot l uses the sample taken at stop src
+        flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
+        stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
+        ex_src, ex_idx, ex_r, ex_ub = [], [], [], []
+        for slot in range(n_loops):
+            d, h = D[None, :, slot], H[None, :, slot]
+            execs = valid & (S >= d) & ((S - d) % h == 0)
+            src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
+            src = src.reshape(B, L).T - (ar * L)[None, :]
+            ex_src.append(np.where(execs, src, -1))
+            rows, cols = np.nonzero(execs)
+            ex_idx.append(np.split(cols, np.cumsum(np.bincount(rows, minlength=L))[:-1]))
+            ex_r.append(sp[ar[None, :], stretch, slot])
+            ex_ub.append(ubar[ar[None, :], stretch, slot])
+        # -- per item and loop: the law
+        kp = np.array([[law.Kp for law in p.laws] for p in plants]).T
+        ki = np.array([[law.Ki for law in p.laws] for p in plants]).T
+        u_lo = np.array([[law.u_min for law in p.laws] for p in plants]).T
+        u_hi = np.array([[law.u_max for law in p.laws] for p in plants]).T
+        fwd = np.array([[law.integration == "forward" for law in p.laws] for p in plants]).T
+        integral = np.zeros((n_loops, B))
+        e_prev = np.zeros((n_loops, B))
+        t_prev = np.zeros((n_loops, B))
+        started = np.zeros((n_loops, B), dtype=bool)
+        # -- the state of every item, one array per state variable (as rk4_tuple's tuple)
+        params = tuple(np.array(col) for col in zip(*(p.params for p in plants), strict=True))
+        x = tuple(np.array(col) for col in zip(*(p.x0 for p in plants), strict=True))
+        U = np.array([p.u0 for p in plants]).T.copy()  # inputs x items
+        f = first.kind.rhs_batch
+        outputs = first.kind.outputs_batch
+        XS = np.zeros((L, len(x), B))
+        with np.errstate(all="ignore"):
+            for j in range(L):
+                XS[j] = x
+                for slot in range(n_loops):
+                    idx = ex_idx[slot][j]
+                    if not len(idx):
+                        continue
+                    past = XS[ex_src[slot][j, idx], :, idx]  # the states sampled, idx x nx
+                    y = outputs(tuple(past.T))[first.out_idx[slot]]
+                    t = T[j, idx]
+                    e = ex_r[slot][j, idx] - y
+                    err_i = np.where(fwd[slot, idx], e_prev[slot, idx], e)
+                    incr = ki[slot, idx] * err_i * (t - t_prev[slot, idx])
+                    incr = np.where(started[slot, idx], incr, 0.0)
+                    base = ex_ub[slot][j, idx] + kp[slot, idx] * e
+                    v = base + integral[slot, idx] + incr
+                    lo, hi = u_lo[slot, idx], u_hi[slot, idx]
+                    wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
+                    now = integral[slot, idx] + np.where(wind, 0.0, incr)
+                    integral[slot, idx] = now
+                    U[first.act_idx[slot], idx] = np.minimum(np.maximum(base + now, lo), hi)
+                    t_prev[slot, idx] = t
+                    e_prev[slot, idx] = e
+                    started[slot, idx] = True
+                if j == L - 1:
+                    break
+                u = tuple(U)
+                for q in range(n_max):
+                    hh, half, sixth = sub_h[q][j], sub_half[q][j], sub_sixth[q][j]
+                    a = f(params, x, u)
+                    b = f(params, tuple(xi + half * ai for xi, ai in zip(x, a, strict=True)), u)
+                    c = f(params, tuple(xi + half * bi for xi, bi in zip(x, b, strict=True)), u)
+                    d4 = f(params, tuple(xi + hh * ci for xi, ci in zip(x, c, strict=True)), u)
+                    x = tuple(
+                        xi + sixth * (ai + 2.0 * bi + 2.0 * ci + di)
+                        for xi, ai, bi, ci, di in zip(x, a, b, c, d4, strict=True)
+                    )
+        return self._overshoots(group, XS, S, valid, t_step, t_sorted, sp, values, slots)
+
+    def _feedforward(self, plants: list[_Plant], sp: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Each loop's feedforward per item and stretch (0 for a loop without one)."""
+        B, n_stretch, n_loops = sp.shape
+        names = {p.name: k for k, p in enumerate(dict.fromkeys(plants))}
+        owner = np.repeat(np.array([names[p.name] for p in plants], dtype=float), n_stretch)
+        keys, inverse = np.unique(
+            np.column_stack([owner, sp.reshape(-1, n_loops)]), axis=0, return_inverse=True
+        )
+        by_name = {p.name: p for p in plants}
+        order = list(names)
+        rows = []
+        for key in keys:
+            plant = by_name[order[int(key[0])]]
+            setpoints = dict(zip(plant.loops, map(float, key[1:]), strict=True))
+            rows.append(
+                [0.0 if ff is None else float(ff.u_bar(setpoints)) for ff in plant.feedforward]
+            )
+        return np.array(rows)[inverse.reshape(-1)].reshape(B, n_stretch, n_loops)
+
+    def _overshoots(
+        self,
+        group: list[tuple[_Plant, tuple[int, ...]]],
+        XS: NDArray[np.float64],
+        S: NDArray[np.int64],
+        valid: NDArray[np.bool_],
+        t_step: NDArray[np.int64],
+        t_sorted: NDArray[np.int64],
+        sp: NDArray[np.float64],
+        values: NDArray[np.float64],
+        slots: NDArray[np.int64],
+    ) -> list[tuple[float, ...]]:
+        """Each loop's overshoot of its steps on the monitoring grid, as
+        :func:`core.record.loop_metrics` measures it, worst over the phases (``inf``: the
+        plant's recorded state is not finite, or the loop has no step)."""
+        first = group[0][0]
+        n_loops, end = len(first.loops), self.end
+        B = S.shape[1]
+        ar = np.arange(B)
+        on_grid = valid & (S % first.monitor == 0)
+        finite = np.all(np.isfinite(XS) | ~on_grid[:, None, :], axis=(0, 1))
+        worst = np.zeros((n_loops, B))
+        has_step = np.zeros((n_loops, B), dtype=bool)
+        for slot in range(n_loops):
+            y = XS[:, first.state_idx[slot], :]
+            mine = [k for k in range(len(slots)) if slots[k] == slot]
+            for k in mine:
+                t0 = t_step[:, k]
+                t1 = np.full(B, end)
+                for o in mine:  # the window ends at the loop's next step
+                    t1 = np.where(t_step[:, o] > t0, np.minimum(t1, t_step[:, o]), t1)
+                r_from = sp[ar, np.sum(t_sorted < t0[:, None], axis=1), slot]
+                size = values[:, k] - r_from
+                sign = np.where(size > 0, 1.0, -1.0)
+                inside = on_grid & (S >= t0[None, :]) & (S <= t1[None, :])
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    dev = np.where(inside, sign[None, :] * (y - values[None, :, k]), -np.inf)
+                    peak = dev.max(axis=0)
+                    os_pct = np.where(peak > 0.0, peak, 0.0) / np.abs(size) * 100.0
+                stepped = size != 0.0
+                worst[slot] = np.where(stepped, np.maximum(worst[slot], os_pct), worst[slot])
+                has_step[slot] |= stepped
+        worst = np.where(has_step & finite[None, :] & np.isfinite(worst), worst, math.inf)
+        per_item = worst.T.reshape(len(group), self.n_phases, n_loops).max(axis=1)
+        return [tuple(float(v) for v in row) for row in per_item]
