@@ -62,6 +62,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/wncsca_latency.py
 	$(BIN)/python bench/tsch_slotframes.py
 	$(BIN)/python bench/startup.py
+	$(BIN)/python bench/dashboard_load.py
 
 clean:
 	rm -rf $(VENV) $(LOCK_VENV) runs site
