@@ -59,6 +59,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/realtime.py
 	$(BIN)/python bench/wncsca_figures.py
 	$(BIN)/python bench/wncsca_methods.py --quick
+	$(BIN)/python bench/wncsca_scale.py --repeat 1
 	$(BIN)/python bench/wncsca_latency.py
 	$(BIN)/python bench/tsch_slotframes.py
 	$(BIN)/python bench/startup.py
