@@ -229,3 +229,26 @@ def test_bad_requests_are_refused_with_their_reason(run_dir, text, named):
     with pytest.raises(CommandError) as err:
         parse(text, run_dir)
     assert named in err.value.reason
+
+
+def test_the_accepted_tsch_schedule_is_shown():
+    scenario = load_scenario(SCENARIOS / "jcstr_tsch.yaml")
+    view = RunView(scenario)
+    [net] = scenario.gateways()
+    cells = [{"slot": 3, "channel": 0, "tx": "s_level", "rx": "r1"},
+             {"slot": 7, "channel": 1, "tx": "r1", "rx": "gw"}]
+    tsch = {"slot_ticks": 10_000, "length": 240, "channel_offsets": 4, "retry_cells": 1,
+            "static": False, "cells": cells}
+    proposal = {"id": 0, "event": "initial", "source": "initial", "paths": {}, "tsch": tsch}
+    decision = {"subject": "proposal", "network": net, "proposal": 0, "verdict": "accept",
+                "reasons": []}
+    batch = view.ingest([_row(1, 0.0, keys.net_proposal(), proposal, src=net),
+                         _row(2, 0.0, keys.wncsca_decision(), decision, src="wncsca")])
+    [schedule] = batch[f"schedule/{net}"]
+    assert schedule["length"] == 240 and schedule["channel_offsets"] == 4
+    assert schedule["cells"] == cells
+    assert view.static()["networks"][net]["tsch"] is True
+    rejected = {**decision, "proposal": 1, "verdict": "reject"}
+    batch = view.ingest([_row(3, 1.0, keys.net_proposal(), {**proposal, "id": 1}, src=net),
+                         _row(4, 1.0, keys.wncsca_decision(), rejected, src="wncsca")])
+    assert f"schedule/{net}" not in batch
