@@ -65,6 +65,18 @@ energy is returned.
 
 Every returned choice passed the non-linear check; if none did, the assignment holds the
 benchmark periods with ``feasible=False`` and the reason.
+
+Batched checks
+--------------
+With the loops on several plants, a check on the engine runs every plant once per step phase
+(:meth:`LoopModel.evaluate`), and the paper's method does that for every trial of every loop.
+There the checks run as batches instead (:class:`agents.wncsca.batch.BatchTrials`: every plant
+and phase of a check at once, as numpy arrays of state, each plant's trials memoised by its
+loops' periods, so a later check re-simulates only the plants whose periods changed). A batch
+gives the engine's overshoots to the last bit, so the choices are those of the engine checks;
+``simulations`` then counts no engine runs, and ``extra`` says how many trials were batched and
+in how many batches. A batch costs about as much as 10-20 engine trials whatever it holds, so on
+one plant (a check of 4 phases) the engine is kept.
 """
 
 from __future__ import annotations
@@ -1258,7 +1270,8 @@ def fast_periods(
     -------
     Assignment
         ``method="fast"``; ``extra`` holds the objective, weights, energy rate, the linear
-        predictions and biases at the periods, and the counts of predictions and checks.
+        predictions and biases at the periods, the counts of predictions and checks, and of
+        batched trials and batches (``simulations`` counts engine runs only).
 
     Raises
     ------
