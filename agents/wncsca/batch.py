@@ -36,8 +36,8 @@ a segment of zero span). Everything that does not depend on the state is compute
 point and feedforward in force at each execution. The loop does, per stop, the RK4 steps of the
 segment on arrays of all items, and the PI law on the items that execute there. The cost is the
 number of stops (about 1000 for an 8 pu test on a 0.01 pu monitoring grid, whatever the number
-of items) times the numpy calls per stop; it grows slowly with the number of items, so a batch of
-hundreds of trials costs about what 20 engine trials do.
+of items) times the numpy calls per stop (two RK4 steps of about 100 calls each): 0.07-0.1 s for
+the 8-20 trials of one check, about 0.2 s for 200 (``bench/wncsca_scale.py``).
 
 A plant model takes part only if it offers ``batch_params``, ``rhs_batch`` and
 ``outputs_batch`` (:class:`plants.jcstr.JCSTR`, :class:`plants.tank.Tank`), its loops are PI loops
