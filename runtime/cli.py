@@ -40,13 +40,13 @@ from agents.monitor.command import add_assess_arguments, run_from_args
 from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
 from dashboard import command as dashboard_command
-from kernel.bus import init_zenoh_log, open_client
+from kernel.bus import init_zenoh_log
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
 from runtime.export import export_run
+from runtime.forkserver import run_node
 from runtime.inject import build_request, send
 from runtime.launcher import INTERRUPTED, launch
-from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.report import load_run, write_plots, write_summary
 from runtime.scale import PLANTS, write_scale
 from runtime.scenario import Scenario, load_scenario
@@ -528,26 +528,15 @@ def _cmd_node(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, overrides=args.set)
     if args.seed is not None:
         scenario = scenario.model_copy(update={"seed": args.seed})
-    if args.name != "clock":
-        try:
-            check_node(scenario, args.name)
-        except KeyError as err:
-            raise ConfigError(str(err.args[0])) from err
-    session = open_client(args.connect)
-    try:
-        if args.name == "clock":
-            runner = clock_runner(scenario, session, args.run_id, realtime=args.realtime)
-
-            def interrupt(signum: int, frame: object) -> None:
-                runner.cancel(f"interrupted ({signal.Signals(signum).name} to the clock)")
-
-            signal.signal(signal.SIGTERM, interrupt)  # the launcher's Ctrl-C arrives so
-            signal.signal(signal.SIGINT, interrupt)
-            return runner.run()
-        options = {"out": args.out, "engine": args.engine}
-        return bus_node(scenario, args.name, args.run_id, session, options).run()
-    finally:
-        session.close()
+    return run_node(
+        scenario,
+        args.name,
+        args.connect,
+        args.run_id,
+        out=args.out,
+        engine=args.engine,
+        realtime=args.realtime,
+    )
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

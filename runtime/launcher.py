@@ -35,6 +35,7 @@ from kernel.bus import DEFAULT_LISTEN, is_put, open_client, open_router
 from kernel.clock import ClockRunner
 from runtime.artefacts import RUN_FILE, SCENARIO_FILE
 from runtime.direct import simulate
+from runtime.forked import ForkServer
 from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
@@ -46,6 +47,8 @@ log = logging.getLogger(__name__)
 
 ENGINES = ("processes", "threads", "direct")
 _EXIT_GRACE_S = 10.0
+_FORK_TIMEOUT_S = 120.0
+"""Processes engine: time the fork server may take to import, validate and fork every node."""
 _STARTING_AT_ONCE = 4
 """Threads engine: nodes that open their session and build their behaviour at the same time.
 Two hundred threads doing both at once (100 loops) starve the zenoh runtime's few threads of
@@ -340,28 +343,23 @@ def _run_processes(
 ) -> tuple[int, str | None, float | None]:
     logs = out / "logs"
     logs.mkdir(exist_ok=True)
-    procs: dict[str, subprocess.Popen] = {}
-    files = []
+    procs: dict[str, Any] = {}  # name -> Forked (what of subprocess.Popen the launcher uses)
     t_started: float | None = None
+    server = ForkServer(  # one interpreter imports and forks every node (runtime/forkserver.py)
+        str(scenario_path),
+        names,
+        connect=endpoint,
+        run_id=run_info["run_id"],
+        logs=logs,
+        args=[*options.get("historian", []), *options.get("clock", []), *common_args],
+        preexec_fn=_die_with_parent,
+    )
     try:
-        for name in names:
-            cmd = node_command(
-                str(scenario_path),
-                name,
-                endpoint,
-                run_info["run_id"],
-                extra=[*options.get(name, []), *common_args],
-            )
-            f = open(logs / f"{name}.log", "w")  # noqa: SIM115 - closed in finally
-            files.append(f)
-            procs[name] = subprocess.Popen(
-                cmd,
-                stdout=f,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-                preexec_fn=_die_with_parent,
-            )
+        try:
+            procs = server.nodes(timeout=_FORK_TIMEOUT_S)
+        except RuntimeError as err:
+            procs = dict(server.children)  # those forked are stopped below
+            return 1, str(err), None
         run_info["nodes"] = {n: p.pid for n, p in procs.items()}
         _write_json(out / RUN_FILE, run_info)
         clock = procs["clock"]
@@ -396,8 +394,7 @@ def _run_processes(
         for p in procs.values():
             if p.poll() is None:
                 _kill(p)
-        for f in files:
-            f.close()
+        server.close()
 
 
 class _StartFailed(Exception):
