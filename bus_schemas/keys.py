@@ -19,6 +19,7 @@ __all__ = [
     "relative",
     "run_prefix",
     "tick",
+    "tick_to",
     "done",
     "done_all",
     "stop",
@@ -109,6 +110,12 @@ def relative(run: str, key: str) -> str:
 
 def tick() -> str:
     return "clock/tick"
+
+
+def tick_to(node: str) -> str:
+    """Where the clock sends ``node`` the ticks of the rounds it takes part in (and a tick every
+    so many rounds, so that it knows how far the run has gone): ``clock/tick/<node>``."""
+    return f"clock/tick/{check_name(node, 'node')}"
 
 
 def done(node: str) -> str:

@@ -50,9 +50,15 @@ class ClockSpec:
     max_microsteps: int
     may_drop: frozenset[str] = frozenset()
     max_rounds: int = 100_000_000
+    every_tick: frozenset[str] = frozenset()  # nodes taking every tick on clock/tick
 
 
 log = logging.getLogger(__name__)
+
+SYNC_ROUNDS = 256
+"""Every this many rounds the tick goes to every node, whether it takes part or not: a node that
+sits rounds out then still knows the round within this many (the data it may keep ahead of its
+last tick, :data:`kernel.node._AHEAD`, is more)."""
 
 
 class Pacer:
@@ -140,6 +146,22 @@ class ClockRunner:
             congestion_control=zenoh.CongestionControl.BLOCK,
             express=True,
         )
+
+    def _publish_tick(self, tick: Tick, to: frozenset[str]) -> None:
+        """Publish ``tick`` on ``clock/tick`` (the nodes that take every tick, observers) and on
+        ``clock/tick/<node>`` for each node of ``to`` but those."""
+        payload = codec.encode(
+            run=self.run_id, src="clock", seq=self._seq, round=tick.round, t=tick.t, body=tick
+        )
+        self._seq += 1
+        for rel in [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.spec.every_tick)]:
+            self.session.put(
+                self._full(rel),
+                payload,
+                encoding=zenoh.Encoding(codec.ENCODING),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                express=True,
+            )
 
     def cancel(self, reason: str) -> None:
         """Stop the run from outside (another thread): the clock publishes ``Stop(ok=False)``
@@ -289,7 +311,7 @@ class ClockRunner:
                     expected=tick.expected,
                     participants=tuple(sorted(who)),
                 )
-            self._publish(keys.tick(), tick)
+            self._publish_tick(tick, self.participants if tick.round % SYNC_ROUNDS == 0 else who)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
             while not (who & self.participants) <= set(dones):

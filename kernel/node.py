@@ -105,6 +105,11 @@ class BusNode:
         self._owners: dict[str, frozenset[str]] = {}  # concrete key -> sources that own it
         self._n_pending = 0  # messages in self._pending
 
+    every_tick = False
+    """Whether the node takes every tick (``clock/tick``, the historian records them); the
+    others take only theirs (``clock/tick/<name>``): those of the rounds they take part in, and
+    one every :data:`kernel.clock.SYNC_ROUNDS` rounds."""
+
     @property
     def round(self) -> int:
         return self.behaviour.round
@@ -124,10 +129,10 @@ class BusNode:
     def run(self) -> int:
         """Serve rounds until the clock stops the run; return the process exit code."""
         session = self.ctx.session
-        prefix = keys.run_prefix(self.run_id)
+        tick_key = keys.tick() if self.every_tick else keys.tick_to(self.name)
         declared = [
-            session.declare_subscriber(f"{prefix}/clock/{leaf}", self._enqueue("control"))
-            for leaf in ("tick", "stop")
+            session.declare_subscriber(keys.full(self.run_id, rel), self._enqueue("control"))
+            for rel in (tick_key, keys.stop())
         ]
         for pattern in self.behaviour.patterns:
             declared.append(
@@ -192,7 +197,9 @@ class BusNode:
             )
 
     def _round_(self, tick: Tick) -> None:
-        if tick.round != self._last_tick + 1:
+        if tick.round <= self._last_tick or (
+            self.every_tick and tick.round != self._last_tick + 1
+        ):
             raise ProtocolError(f"{self.name}: tick {tick.round} after round {self._last_tick}")
         self._last_tick = tick.round
         if tick.participants is not None and self.name not in tick.participants:

@@ -38,6 +38,8 @@ class Recorder(Behaviour):
 
 
 class HistorianNode(BusNode):
+    every_tick = True
+
     def __init__(self, ctx: NodeContext, *, scenario_name: str, seed: int) -> None:
         out = Path(ctx.options.get("out") or ".")
         out.mkdir(parents=True, exist_ok=True)
