@@ -7,7 +7,13 @@ numpy, scipy, pydantic and zenoh; each node kind's behaviour module, as a lean e
 load it; and ``runtime.cli``, what a node loads today. Then the ten slowest modules of
 ``import runtime.cli`` by cumulative time (``python -X importtime``).
 
-    .venv/bin/python bench/startup.py [--repeat 5]
+Then the start-up of the processes engine on the JCSTR benchmark (``wncs run`` until the first
+round: router, node processes, imports, sessions, every node alive), here and at ``--against
+REV`` (default ``0b9e00f``, the last commit before the fork server of ``runtime/forkserver.py``,
+where each node was a fresh ``wncs node`` interpreter), alternately in fresh processes
+(``bench/against.py``; each side's node processes import that side's tree).
+
+    .venv/bin/python bench/startup.py [--repeat 5] [--against REV] [--launches 5]
 """
 
 from __future__ import annotations
@@ -16,6 +22,8 @@ import argparse
 import statistics
 import subprocess
 import sys
+
+from against import Comparison
 
 MODULES = {
     "python + numpy, scipy, pydantic, zenoh": "numpy, scipy, pydantic, zenoh",
@@ -26,7 +34,8 @@ MODULES = {
     "agent (agents.wncsca.behaviour)": "agents.wncsca.behaviour",
     "monitor (agents.monitor.behaviour)": "agents.monitor.behaviour",
     "scenario schema (runtime.scenario)": "runtime.scenario",
-    "wncs node today (runtime.cli)": "runtime.cli",
+    "what the fork server imports (runtime.nodes)": "runtime.nodes",
+    "wncs node (runtime.cli)": "runtime.cli",
 }
 
 
@@ -58,9 +67,35 @@ def slowest(module: str, n: int = 10) -> list[tuple[float, str]]:
     return sorted(rows, reverse=True)[:n]
 
 
+# start-up phase of one processes-engine run of the benchmark, in the tree at ROOT
+PROCESSES_STARTUP = """
+import json, os, tempfile
+os.environ["PYTHONPATH"] = ROOT  # the node processes import this tree too
+from runtime.launcher import launch
+with tempfile.TemporaryDirectory() as tmp:
+    res = launch(ROOT + "/scenarios/jcstr_benchmark.yaml", tmp + "/run", engine="processes")
+    assert res.code == 0, res.error
+    print(json.dumps(res.summary["phases_s"]["startup"]))
+"""
+
+
+def processes_startup(rev: str, launches: int) -> None:
+    """Start-up of the processes engine on the benchmark, here and at ``rev``."""
+    with Comparison(rev) as cmp:
+        ours, theirs = cmp.run(PROCESSES_STARTUP, rounds=launches)
+    print(f"\nprocesses engine start-up on jcstr_benchmark (s), {launches} alternating launches:")
+    print("| tree | fastest | median |")
+    print("|---|---:|---:|")
+    for label, xs in (("this tree", ours), (rev, theirs)):
+        print(f"| {label} | {min(xs):.2f} | {statistics.median(xs):.2f} |")
+    print(f"this tree / {rev}: {statistics.median(ours) / statistics.median(theirs):.2f} (medians)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--against", default="0b9e00f", help="revision to compare start-up with")
+    parser.add_argument("--launches", type=int, default=5, help="launches per side")
     args = parser.parse_args()
     print(f"import time, median of {args.repeat} fresh interpreters")
     print("| what | s |")
@@ -70,6 +105,7 @@ def main() -> None:
     print("\nslowest modules under `import runtime.cli` (cumulative s):")
     for seconds, name in slowest("runtime.cli"):
         print(f"  {seconds:6.3f}  {name}")
+    processes_startup(args.against, args.launches)
 
 
 if __name__ == "__main__":

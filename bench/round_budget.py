@@ -1,0 +1,209 @@
+"""Where a bus round's time goes (issue 20, item 2): unit costs times what a round does.
+
+A profiler is no help on the threads engine (every node shares the interpreter lock, so a call
+that releases it, a zenoh put or an SQLite commit, is charged with the other threads' work),
+nor on the processes engine (eight processes on two cores). So this bench measures each step of
+a round alone, in one thread, and multiplies by how often a run does it:
+
+* from a real threads run of the scenario (default the JCSTR benchmark): the rounds, the data
+  messages, their deliveries (each message to the historian and to every node listening to its
+  key), the nodes' participations (``Stop.rounds_taken``) and the ticks: one on ``clock/tick``
+  (the historian's, which its ``**`` sees once more) and one per node taking part
+  (``clock/tick/<node>``, which the historian's ``**`` sees and drops), plus one to every node
+  every ``kernel.clock.SYNC_ROUNDS`` rounds;
+* unit costs, median of many: encoding a message (``model_dump`` + msgpack), decoding and
+  validating one (envelope + body), a zenoh ``put`` (the call alone), a queue hop between two
+  threads (the callback's ``put`` to the node thread's ``get``: one wake-up), an SQLite insert
+  and a commit (the historian's), and a Zenoh round trip (``bench/engines.py``).
+
+Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
+of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover
+is the rounds' critical path: the tick's and the Dones' trips over the router and the threads
+waiting for the interpreter lock.
+
+    .venv/bin/python bench/round_budget.py [SCENARIO]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import queue
+import sqlite3
+import statistics
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from engines import round_trip_ms, rounds_of
+
+from bus_schemas import Done, Tick, codec
+from kernel.bus import open_client, open_router
+from kernel.clock import SYNC_ROUNDS
+from runtime.direct import behaviour_of
+from runtime.history import connect
+from runtime.launcher import launch
+from runtime.scenario import load_scenario
+
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"
+
+
+def median_us(fn: Callable[[], object], n: int = 2000) -> float:
+    """Median wall time of ``fn()`` in microseconds, over batches of 50 calls."""
+    fn()
+    per = []
+    for _ in range(max(n // 50, 5)):
+        t0 = time.perf_counter()
+        for _ in range(50):
+            fn()
+        per.append((time.perf_counter() - t0) / 50)
+    return statistics.median(per) * 1e6
+
+
+def unit_costs() -> dict[str, float]:
+    """Microseconds per step, each alone in one thread."""
+    tick = Tick(round=12, t=1_200_000, expected={"loop/level/meas": 1, "plant/reactor/state": 1})
+    done = Done(round=12, node="level_controller", published={"loop/level/u": 1}, next_time=None)
+    raw = codec.encode(run="r0123456789", src="clock", seq=7, round=12, t=1_200_000, body=tick)
+    out: dict[str, float] = {}
+    out["encode"] = median_us(
+        lambda: codec.encode(run="r0123456789", src="n", seq=1, round=12, t=1, body=done)
+    )
+    out["decode"] = median_us(lambda: codec.decode_body(codec.decode_envelope(raw), Tick))
+    q: queue.Queue[bytes] = queue.Queue()
+    back: queue.Queue[bytes] = queue.Queue()
+
+    def echo() -> None:
+        while (item := q.get()) != b"":
+            back.put(item)
+
+    th = threading.Thread(target=echo, daemon=True)
+    th.start()
+
+    def hop_pair() -> None:
+        q.put(raw)
+        back.get()
+
+    out["queue hop"] = median_us(hop_pair, 1000) / 2
+    q.put(b"")
+    th.join()
+    router, locators = open_router("tcp/127.0.0.1:0")
+    endpoint = next(loc for loc in locators if loc.startswith("tcp/"))
+    a, b = open_client(endpoint), open_client(endpoint)
+    sub = b.declare_subscriber("bench/x", lambda s: None)
+    pub = a.declare_publisher("bench/x", express=True)
+    time.sleep(0.5)
+    try:
+        out["zenoh put"] = median_us(lambda: pub.put(raw))
+    finally:
+        sub.undeclare()
+        pub.undeclare()
+        a.close()
+        b.close()
+        router.close()
+    with tempfile.TemporaryDirectory() as tmp:
+        db = connect(Path(tmp) / "h.sqlite", create=True)
+        row = (1, 2, "loop/level/u", "level_controller", 3, raw)
+        out["sqlite insert"] = median_us(
+            lambda: db.execute(
+                "INSERT INTO messages (round, t, key, src, seq, body) VALUES (?, ?, ?, ?, ?, ?)",
+                row,
+            )
+        )
+        ticks = itertools.count()
+
+        def tick_and_commit() -> None:
+            db.execute(
+                "INSERT INTO ticks (round, t, expected) VALUES (?, ?, ?)", (next(ticks), 0, "{}")
+            )
+            db.commit()
+
+        out["sqlite commit"] = median_us(tick_and_commit, 500)
+        db.close()
+    return out
+
+
+def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
+    """What one threads run does per round, its per-round wall cost (ms) and its rounds."""
+    scenario = load_scenario(scenario_path)
+    names = scenario.participants()
+    behaviours = {n: behaviour_of(scenario, n) for n in names if n != "historian"}
+    with tempfile.TemporaryDirectory() as tmp:
+        res = launch(scenario_path, Path(tmp) / "run", engine="threads")
+        if res.code != 0:
+            raise SystemExit(res.error)
+        rounds = rounds_of(Path(tmp) / "run")
+        db = sqlite3.connect(Path(tmp) / "run" / "history.sqlite")
+        msg_keys = [k for (k,) in db.execute("SELECT key FROM messages")]
+        (stop,) = db.execute("SELECT value FROM meta WHERE name = 'stop'").fetchone()
+        db.close()
+        run_ms = res.summary["phases_s"]["run"] * 1e3
+    rounds_taken = json.loads(stop)["rounds_taken"]
+    taken = sum(rounds_taken.values())
+    # ticks addressed to the round's nodes (clock/tick/<node>; the historian takes clock/tick),
+    # and to every node every SYNC_ROUNDS rounds
+    addressed = (taken - rounds_taken.get("historian", 0)) / rounds + (len(names) - 1) / SYNC_ROUNDS
+    listeners = {
+        k: 1 + sum(b.listens_to(k) for b in behaviours.values()) for k in set(msg_keys)
+    }  # the historian and every behaviour subscribed to it
+    deliveries = sum(listeners[k] for k in msg_keys)
+    per_round = {
+        "messages published (encode + put)": len(msg_keys) / rounds,
+        "Done answers (encode + put; clock: decode)": taken / rounds,
+        "message deliveries (queue hop + decode)": deliveries / rounds,
+        "ticks put (clock/tick and one per addressee)": 1 + addressed,
+        "tick deliveries to their nodes (queue hop + decode)": addressed,
+        "ticks the historian drops or records (queue hop)": addressed + 2,
+        "historian rows (insert) and commits": (len(msg_keys) + rounds) / rounds,
+    }
+    return per_round, run_ms / rounds, rounds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", nargs="?", type=Path, default=SCENARIO)
+    args = parser.parse_args()
+    per_round, wall_ms, rounds = counts(args.scenario)
+    unit = unit_costs()
+    floor = round_trip_ms()
+    print("unit costs, one thread, median (us):")
+    for what, us in unit.items():
+        print(f"  {what:14s} {us:7.1f}")
+    cost = {
+        "messages published (encode + put)": unit["encode"] + unit["zenoh put"],
+        "Done answers (encode + put; clock: decode)": unit["encode"]
+        + unit["zenoh put"]
+        + unit["queue hop"]
+        + unit["decode"],
+        "message deliveries (queue hop + decode)": unit["queue hop"] + unit["decode"],
+        "ticks put (clock/tick and one per addressee)": unit["zenoh put"],
+        "tick deliveries to their nodes (queue hop + decode)": unit["queue hop"] + unit["decode"],
+        "ticks the historian drops or records (queue hop)": unit["queue hop"],
+        "historian rows (insert) and commits": unit["sqlite insert"],
+    }
+    print(f"\n{args.scenario.name}, threads engine: {rounds} rounds")
+    print("| part of a round | per round | us each | us per round |")
+    print("|---|---:|---:|---:|")
+    total = 0.0
+    for what, n in per_round.items():
+        us = n * cost[what]
+        if what.startswith("historian"):
+            us += unit["sqlite commit"]  # one commit per round (the tick)
+        total += us
+        print(f"| {what} | {n:.2f} | {cost[what]:.1f} | {us:.0f} |")
+    print(f"| the tick's encoding (once) | 1 | {unit['encode']:.1f} | {unit['encode']:.0f} |")
+    total += unit["encode"]
+    print(f"| **sum of the parts** | | | **{total:.0f}** |")
+    print(
+        f"\nmeasured: {wall_ms * 1e3:.0f} us per round (run phase / rounds); Zenoh round trip "
+        f"{floor * 1e3:.0f} us: {wall_ms / floor:.1f}x the floor; the parts are "
+        f"{total / (wall_ms * 1e3):.0%} of it, the rest is the round's critical path (tick out, "
+        "Dones back over the router) and threads waiting for the interpreter lock"
+    )
+
+
+if __name__ == "__main__":
+    main()

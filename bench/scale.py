@@ -1,0 +1,106 @@
+"""Wall time per simulated unit against the number of loops (issue 20, item 4).
+
+For each N (default 10, 50, 100) the scale scenario of ``wncs scale N`` (N tanks, each its own
+non-linear PI, every sensor two hops from one of N/10 gateways, staggered set-point steps; see
+``runtime/scale.py``), cut to ``--end-time`` (default 10 s, so that the bus engines' runs stay a
+few minutes), on each engine:
+
+* ``direct``: :func:`runtime.direct.simulate` in this process (no plots), fastest of two;
+* ``threads`` and ``processes``: ``wncs run`` (:func:`runtime.launcher.launch`), start-up (until
+  the first round) apart from the run phase (first round to the clock's stop); the rounds are
+  the history's ticks.
+
+Printed: a table per engine and N (nodes, rounds, start-up, run, run seconds per simulated
+second and per round) and, per engine, the exponent ``k`` of ``run per unit ~ N^k`` fitted by
+least squares on log-log axes (1: linear growth; 2: quadratic). Independent loops sample at
+their own instants once the WSN has delayed them, so the rounds grow as N: ``k`` near 1 needs a
+round whose cost does not grow with the number of nodes.
+
+    .venv/bin/python bench/scale.py [--loops 10 50 100] [--engines direct threads processes]
+                                    [--end-time 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sqlite3
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from runtime.direct import simulate
+from runtime.launcher import launch
+from runtime.scale import write_scale
+from runtime.scenario import load_scenario
+
+
+def rounds_of(run_dir: Path) -> int:
+    """The clock rounds of a bus run (its history's ticks)."""
+    db = sqlite3.connect(run_dir / "history.sqlite")
+    try:
+        (n,) = db.execute("SELECT COUNT(*) FROM ticks").fetchone()
+    finally:
+        db.close()
+    return int(n)
+
+
+def growth(ns: list[int], per_unit: list[float]) -> float:
+    """The exponent k of ``per_unit ~ N^k`` (least squares on log-log axes)."""
+    k, _ = np.polyfit(np.log(ns), np.log(per_unit), 1)
+    return float(k)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--loops", type=int, nargs="+", default=[10, 50, 100])
+    parser.add_argument(
+        "--engines", nargs="+", default=["direct", "threads", "processes"], help="engines to run"
+    )
+    parser.add_argument("--end-time", type=float, default=10.0, help="simulated seconds per run")
+    args = parser.parse_args()
+    print(f"scale scenarios (tank loops over WSN paths), {args.end_time:g} s simulated each")
+    print("| engine | loops | nodes | rounds | start-up s | run s | run s per sim s | ms/round |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    fits: dict[str, tuple[list[int], list[float]]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in args.loops:
+            path = Path(tmp) / f"scale{n}.yaml"
+            write_scale(n, path, end_time=args.end_time)
+            scenario = load_scenario(path)
+            nodes = len(scenario.participants()) + 1  # and the clock
+            for engine in args.engines:
+                if engine == "direct":
+                    runs = []
+                    for _ in range(2):
+                        t0 = time.perf_counter()
+                        simulate(scenario)
+                        runs.append(time.perf_counter() - t0)
+                    start, run, rounds = 0.0, min(runs), None
+                else:
+                    out = Path(tmp) / f"{engine}{n}"
+                    res = launch(path, out, engine=engine)
+                    if res.code != 0:
+                        print(f"| {engine} | {n} | {nodes} | failed: {res.error} |")
+                        continue
+                    phases = res.summary["phases_s"]
+                    start, run, rounds = phases["startup"], phases["run"], rounds_of(out)
+                per_unit = run / args.end_time
+                fits.setdefault(engine, ([], []))
+                fits[engine][0].append(n)
+                fits[engine][1].append(per_unit)
+                per_round = "-" if rounds is None else f"{run / rounds * 1e3:.2f}"
+                print(
+                    f"| {engine} | {n} | {nodes} | {rounds or '-'} | {start:.2f} | {run:.2f} "
+                    f"| {per_unit:.3f} | {per_round} |",
+                    flush=True,
+                )
+    print("\ngrowth of the run time per simulated unit with N (1 = linear, 2 = quadratic):")
+    for engine, (ns, per_unit) in fits.items():
+        if len(ns) > 1:
+            print(f"  {engine}: N^{growth(ns, per_unit):.2f} over N = {ns}")
+
+
+if __name__ == "__main__":
+    main()
