@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import control
 import numpy as np
@@ -136,11 +137,40 @@ class JCSTR:
         operations in the same order, element by element (IEEE float64), so each element is
         bit-identical to :meth:`rhs_tuple` (the agent's batched checks,
         ``agents/wncsca/batch.py``)."""
-        f_in, a_b, alpha, pi_d, t_in, t_jin, v_j = p
-        h, temp, temp_j = x
+        return JCSTR.rhs_batch_held(p, x, JCSTR.rhs_batch_inputs(p, u))
+
+    @staticmethod
+    def rhs_batch_inputs(
+        p: Sequence[NDArray[np.float64]],
+        u: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]] | None = None,
+        span: NDArray[np.float64] | None = None,
+    ) -> tuple[Any, ...]:
+        """What :meth:`rhs_batch` computes from the inputs alone, once for a segment they hold
+        (the RK4 steps call :meth:`rhs_batch_held` with it): ``dh`` (the level's derivative
+        while the tank holds liquid), ``F_jin`` and whether a level may reach 0 within ``span``
+        from ``x`` (without ``x``: assumed). While it holds liquid the level moves at ``dh``
+        alone, so over ``span`` it stays above ``h + span * min(dh, 0)``; twice that margin above
+        1e-9 rules the empty-tank clamp out for the segment."""
+        f_in, a_b = p[0], p[1]
         f_out, f_jin = u
         dh = (f_in - f_out) / a_b
-        if (h <= 0.0).any():
+        low = True
+        if x is not None and span is not None:
+            low = not np.fmin.reduce(x[0] + 2.0 * span * np.minimum(dh, 0.0)) > 1e-9
+        return (dh, f_jin, low)
+
+    @staticmethod
+    def rhs_batch_held(
+        p: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]],
+        held: tuple[Any, ...],
+    ) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`rhs_batch` with the inputs' terms of :meth:`rhs_batch_inputs`."""
+        f_in, a_b, alpha, pi_d, t_in, t_jin, v_j = p
+        h, temp, temp_j = x
+        dh, f_jin, low = held
+        if low and np.fmin.reduce(h) <= 0.0:  # some h <= 0 (fmin skips NaN)
             dh = np.where((h <= 0.0) & (dh < 0.0), 0.0, dh)
         h_eff = np.maximum(h, H_MIN)  # rhs_tuple's choice for every non-NaN level
         q = alpha * (a_b + pi_d * h_eff) * (temp_j - temp)

@@ -129,10 +129,34 @@ class Tank:
         """:meth:`rhs` on many tanks at once: ``p`` (:meth:`batch_params`), ``x`` and ``u`` hold
         one array per constant, state and input, one element per tank; the same operations
         element by element (the agent's batched checks, ``agents/wncsca/batch.py``)."""
-        b, a, u_min, u_max = p
+        return Tank.rhs_batch_held(p, x, Tank.rhs_batch_inputs(p, u))
+
+    @staticmethod
+    def rhs_batch_inputs(
+        p: Sequence[NDArray[np.float64]],
+        u: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]] | None = None,
+        span: NDArray[np.float64] | None = None,
+    ) -> tuple[NDArray[np.float64], ...]:
+        """What :meth:`rhs_batch` computes from the inputs alone (the inflow), once for a
+        segment they hold; ``x`` and ``span`` are not needed."""
+        b, _, u_min, u_max = p
+        # the clip of rhs (u_min < u_max; NaN stays NaN, as in rhs)
+        cmd = np.minimum(np.maximum(u[0], u_min), u_max)
+        return (b * cmd - u[1] if len(u) > 1 else b * cmd,)
+
+    @staticmethod
+    def rhs_batch_held(
+        p: Sequence[NDArray[np.float64]],
+        x: Sequence[NDArray[np.float64]],
+        held: tuple[NDArray[np.float64], ...],
+    ) -> tuple[NDArray[np.float64], ...]:
+        """:meth:`rhs_batch` with the inflow of :meth:`rhs_batch_inputs`."""
+        a = p[1]
         (h,) = x
-        cmd = np.where(u[0] < u_min, u_min, np.where(u[0] > u_max, u_max, u[0]))
-        inflow = b * cmd - u[1] if len(u) > 1 else b * cmd
+        (inflow,) = held
+        if np.minimum.reduce(h) > 0.0:  # every tank holds water (False with a NaN level)
+            return (inflow - a * np.sqrt(h),)
         full = inflow - a * np.sqrt(np.where(h > 0.0, h, 0.0))
         return (np.where(h > 0.0, full, np.where(inflow > 0.0, inflow, 0.0)),)
 

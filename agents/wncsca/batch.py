@@ -96,6 +96,66 @@ class _Plant:
         )
 
 
+@dataclass(frozen=True)
+class _Executions:
+    """One loop's executions in a batch, sorted by stop (those at stop ``j`` are
+    ``bounds[j]:bounds[j + 1]``), with everything about them that does not depend on the state."""
+
+    bounds: list[int]
+    item: NDArray[np.int64]  # the executing item
+    src: NDArray[np.int64]  # the stop of the sample it uses
+    values: NDArray[np.float64]  # rows: set point, feedforward, Kp, Ki, u_min, u_max, dt
+    started: NDArray[np.bool_]  # whether the item executed before (else no integration)
+    forward: NDArray[np.bool_] | bool | None  # forward integral: per execution, all, none
+
+
+def _executions(
+    slot: int,
+    S: NDArray[np.int64],
+    T: NDArray[np.float64],
+    D: NDArray[np.int64],
+    H: NDArray[np.int64],
+    valid: NDArray[np.bool_],
+    end: int,
+    plants: list[_Plant],
+    sp: NDArray[np.float64],
+    ubar: NDArray[np.float64],
+    stretch: NDArray[np.int64],
+    flat: NDArray[np.int64],
+) -> _Executions:
+    """Loop ``slot``'s executions in the stops ``S`` (stops x items): at stop ``j`` item ``i``
+    executes when ``S - tau_d`` is a sampling instant, on the sample of the stop at ``S -
+    tau_d``, with the set point and feedforward of the stretch in force; ``dt`` is the time
+    since its previous execution (``t - t_prev`` as :class:`controllers.pi.PI` takes it)."""
+    L, B = S.shape
+    ar = np.arange(B)
+    d, h = D[None, :, slot], H[None, :, slot]
+    execs = valid & (S >= d) & ((S - d) % h == 0)
+    src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
+    src = src.reshape(B, L).T - (ar * L)[None, :]
+    item, stop = np.nonzero(execs.T)  # by item, then stop
+    t = T[stop, item]
+    started = np.zeros(len(item), dtype=bool)
+    started[1:] = item[1:] == item[:-1]
+    t_prev = np.zeros(len(item))
+    t_prev[1:] = t[:-1]
+    dt = t - np.where(started, t_prev, 0.0)
+    order = np.lexsort((item, stop))  # by stop, then item
+    item, stop, dt, started = item[order], stop[order], dt[order], started[order]
+    laws = [p.laws[slot] for p in plants]
+    law = np.array([[lw.Kp, lw.Ki, lw.u_min, lw.u_max] for lw in laws]).T[:, item]
+    k = stretch[stop, item]
+    values = np.vstack([sp[item, k, slot], ubar[item, k, slot], law, dt])
+    fwd = np.array([lw.integration == "forward" for lw in laws])[item]
+    forward: NDArray[np.bool_] | bool | None = fwd
+    if fwd.all():
+        forward = True
+    elif not fwd.any():
+        forward = None
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(stop, minlength=L))]).tolist()
+    return _Executions(bounds, item, src[stop, item], values, started, forward)
+
+
 class BatchTrials:
     """The agent's trials of ``model``, simulated many at once (module docstring).
 
@@ -177,11 +237,18 @@ class BatchTrials:
         return not self.reason
 
     def overshoots(
-        self, periods: NDArray[np.float64], delays: Mapping[str, float]
+        self,
+        periods: NDArray[np.float64],
+        delays: Mapping[str, float],
+        ahead: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Worst-case overshoot (%) of every loop (columns in :attr:`loops` order; ``inf``:
         diverged or no step) for each row of ``periods`` (rows x loops, time units), under the
-        control-path ``delays``: what :meth:`LoopModel.evaluate` gives, row by row."""
+        control-path ``delays``: what :meth:`LoopModel.evaluate` gives, row by row.
+
+        ``ahead``: rows likely asked for next; a plant that is simulated for ``periods`` anyway
+        simulates them too, in the same batch (a few more items cost little there), and
+        memoises them; no plant is simulated for them alone."""
         if not self.available:
             raise ValueError(f"batched trials unavailable: {self.reason}")
         rows = np.atleast_2d(np.asarray(periods, dtype=float))
@@ -191,15 +258,28 @@ class BatchTrials:
         dticks = {n: to_ticks(float(delays.get(n, 0.0))) for n in self.loops}
         todo: dict[tuple[Any, ...], list[tuple[_Plant, tuple[int, ...]]]] = {}
         keys = []
+        extra = (
+            np.rint(np.atleast_2d(ahead) * TICKS_PER_UNIT).astype(np.int64)
+            if ahead is not None and len(ahead)
+            else np.zeros((0, len(self.loops)), dtype=np.int64)
+        )
         for plant in self.plants.values():
             cols = [self.index[n] for n in plant.loops]
             d = tuple(dticks[n] for n in plant.loops)
+            missed = False
             for r in ticks:
                 h = tuple(int(v) for v in r[cols])
                 key = (plant.name, h, d)
                 keys.append(key)
                 if key not in self._memo:
+                    missed = True
                     group = todo.setdefault(plant.structure(), [])
+                    if (plant, h) not in group:
+                        group.append((plant, h))
+            for r in extra if missed else ():
+                h = tuple(int(v) for v in r[cols])
+                if min(h) >= 1 and (plant.name, h, d) not in self._memo:
+                    group = todo[plant.structure()]
                     if (plant, h) not in group:
                         group.append((plant, h))
         for group in todo.values():
@@ -275,77 +355,78 @@ class BatchTrials:
         n_sub = np.where(span > 0.0, n_sub, 0)
         h_seg = np.where(n_sub > 0, span / np.maximum(n_sub, 1), 0.0)
         n_max = int(n_sub.max(initial=0))
-        sub_h = [np.where(n_sub > q, h_seg, 0.0) for q in range(n_max)]
+        n_x = len(first.x0)
+        # per substep and stop, as states x items (a broadcast per numpy call costs more than
+        # the arithmetic on a few items)
+        sub_h = [
+            np.repeat(np.where(n_sub > q, h_seg, 0.0)[:, None, :], n_x, axis=1)
+            for q in range(n_max)
+        ]
         sub_half = [0.5 * v for v in sub_h]
         sub_sixth = [v / 6.0 for v in sub_h]
         # -- executions: at stop j of item i, loop slot l uses the sample taken at stop src
         flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
         stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
-        ex_src, ex_idx, ex_r, ex_ub = [], [], [], []
-        for slot in range(n_loops):
-            d, h = D[None, :, slot], H[None, :, slot]
-            execs = valid & (S >= d) & ((S - d) % h == 0)
-            src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
-            src = src.reshape(B, L).T - (ar * L)[None, :]
-            ex_src.append(np.where(execs, src, -1))
-            rows, cols = np.nonzero(execs)
-            ex_idx.append(np.split(cols, np.cumsum(np.bincount(rows, minlength=L))[:-1]))
-            ex_r.append(sp[ar[None, :], stretch, slot])
-            ex_ub.append(ubar[ar[None, :], stretch, slot])
-        # -- per item and loop: the law
-        kp = np.array([[law.Kp for law in p.laws] for p in plants]).T
-        ki = np.array([[law.Ki for law in p.laws] for p in plants]).T
-        u_lo = np.array([[law.u_min for law in p.laws] for p in plants]).T
-        u_hi = np.array([[law.u_max for law in p.laws] for p in plants]).T
-        fwd = np.array([[law.integration == "forward" for law in p.laws] for p in plants]).T
+        # the executions of each loop, everything about them that is not state gathered here
+        ex = [
+            _executions(slot, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
+            for slot in range(n_loops)
+        ]
         integral = np.zeros((n_loops, B))
         e_prev = np.zeros((n_loops, B))
-        t_prev = np.zeros((n_loops, B))
-        started = np.zeros((n_loops, B), dtype=bool)
-        # -- the state of every item, one array per state variable (as rk4_tuple's tuple)
+        # -- the state of every item, states x items: rk4_tuple's arithmetic element by element
         params = tuple(np.array(col) for col in zip(*(p.params for p in plants), strict=True))
-        x = tuple(np.array(col) for col in zip(*(p.x0 for p in plants), strict=True))
+        X = np.array([p.x0 for p in plants], dtype=float).T.copy()
         U = np.array([p.u0 for p in plants]).T.copy()  # inputs x items
         f = first.kind.rhs_batch
+        # the terms of the plant's rhs that the inputs fix, once per segment, when it offers them
+        held = getattr(first.kind, "rhs_batch_inputs", None)
+        f_held = getattr(first.kind, "rhs_batch_held", None)
         outputs = first.kind.outputs_batch
-        XS = np.zeros((L, len(x), B))
+        XS = np.zeros((L, len(X), B))
+        n_here = (n_sub.max(axis=1) if n_max else np.zeros(L - 1, dtype=np.int64)).tolist()
         with np.errstate(all="ignore"):
             for j in range(L):
-                XS[j] = x
+                XS[j] = X
                 for slot in range(n_loops):
-                    idx = ex_idx[slot][j]
-                    if not len(idx):
+                    e_x = ex[slot]
+                    a, b = e_x.bounds[j], e_x.bounds[j + 1]
+                    if a == b:
                         continue
-                    past = XS[ex_src[slot][j, idx], :, idx]  # the states sampled, idx x nx
-                    y = outputs(tuple(past.T))[first.out_idx[slot]]
-                    t = T[j, idx]
-                    e = ex_r[slot][j, idx] - y
-                    err_i = np.where(fwd[slot, idx], e_prev[slot, idx], e)
-                    incr = ki[slot, idx] * err_i * (t - t_prev[slot, idx])
-                    incr = np.where(started[slot, idx], incr, 0.0)
-                    base = ex_ub[slot][j, idx] + kp[slot, idx] * e
-                    v = base + integral[slot, idx] + incr
-                    lo, hi = u_lo[slot, idx], u_hi[slot, idx]
+                    idx, src = e_x.item[a:b], e_x.src[a:b]
+                    r, ub, kp, ki, lo, hi, dt = e_x.values[:, a:b]
+                    y = outputs(XS[src, :, idx].T)[first.out_idx[slot]]  # the sample used
+                    e = r - y
+                    if e_x.forward is None:
+                        err_i = e
+                    elif e_x.forward is True:
+                        err_i = e_prev[slot, idx]
+                    else:
+                        err_i = np.where(e_x.forward[a:b], e_prev[slot, idx], e)
+                    incr = np.where(e_x.started[a:b], ki * err_i * dt, 0.0)
+                    base = ub + kp * e
+                    i_now = integral[slot, idx]
+                    v = base + i_now + incr
                     wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
-                    now = integral[slot, idx] + np.where(wind, 0.0, incr)
+                    now = i_now + np.where(wind, 0.0, incr)
                     integral[slot, idx] = now
                     U[first.act_idx[slot], idx] = np.minimum(np.maximum(base + now, lo), hi)
-                    t_prev[slot, idx] = t
                     e_prev[slot, idx] = e
-                    started[slot, idx] = True
                 if j == L - 1:
                     break
+                if not n_here[j]:
+                    continue
                 u = tuple(U)
-                for q in range(n_max):
+                g, arg = f, u
+                if held is not None and f_held is not None:
+                    g, arg = f_held, held(params, u, X, span[j])
+                for q in range(n_here[j]):
                     hh, half, sixth = sub_h[q][j], sub_half[q][j], sub_sixth[q][j]
-                    a = f(params, x, u)
-                    b = f(params, tuple(xi + half * ai for xi, ai in zip(x, a, strict=True)), u)
-                    c = f(params, tuple(xi + half * bi for xi, bi in zip(x, b, strict=True)), u)
-                    d4 = f(params, tuple(xi + hh * ci for xi, ci in zip(x, c, strict=True)), u)
-                    x = tuple(
-                        xi + sixth * (ai + 2.0 * bi + 2.0 * ci + di)
-                        for xi, ai, bi, ci, di in zip(x, a, b, c, d4, strict=True)
-                    )
+                    k1 = np.array(g(params, X, arg))
+                    k2 = np.array(g(params, X + half * k1, arg))
+                    k3 = np.array(g(params, X + half * k2, arg))
+                    k4 = np.array(g(params, X + hh * k3, arg))
+                    X = X + sixth * (k1 + (k2 + k2) + (k3 + k3) + k4)  # 2 k = k + k
         return self._overshoots(group, XS, S, valid, t_step, t_sorted, sp, values, slots)
 
     def _feedforward(self, plants: list[_Plant], sp: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -252,6 +252,27 @@ def _distinct(mid: NDArray[np.int64], key: NDArray[Any]) -> tuple[NDArray[np.int
     return first, inverse.reshape(-1)
 
 
+def _distinct_ticks(
+    mid: NDArray[np.int64], ticks: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], ...]:
+    """:func:`_distinct` for a key of non-negative integers (ticks): the same items in the same
+    order (by model, then key), found with a table instead of a sort."""
+    span = int(ticks.max(initial=0)) + 1
+    key = mid.astype(np.int64) * span + ticks
+    size = int(key.max(initial=0)) + 1
+    if size > 8 * len(key) + 4096:  # a sparse key: sort
+        return _distinct(mid, ticks)
+    seen = np.zeros(size, dtype=bool)
+    seen[key] = True
+    keys = np.flatnonzero(seen)
+    lookup = np.zeros(size, dtype=np.int64)
+    lookup[keys] = np.arange(len(keys))
+    inverse = lookup[key]
+    first = np.zeros(len(keys), dtype=np.int64)
+    first[inverse[::-1]] = np.arange(len(key) - 1, -1, -1)  # the first item of each key
+    return first, inverse
+
+
 class _Models:
     """The distinct LTI models of one batch, and their exponentials at per-item times."""
 
@@ -693,8 +714,13 @@ class LinearPredictor:
                 xi[hj == r, at + 1 : at + 1 + npd] = ws
             at += 1 + npd
         # one period: xi(k+1) = Phi_b (Phi_a xi + g_a u_before + c_a) + g_b u_after + c_b
-        phi_k = phi_bk @ phi_ak
-        g_before = (phi_bk @ g_ak[..., None])[..., 0]
+        # Phi_b Phi_a and Phi_b g_a take one value per pair of pieces' models (n_seg^2 per
+        # item): computed once per pair, looked up per period in the recursion
+        pa = np.repeat(np.arange(n_seg), n_seg)  # pair p = sa * n_seg + sb
+        pb = np.tile(np.arange(n_seg), n_seg)
+        phi_pair = phi_b[:, pb] @ phi_a[:, pa]
+        g_pair = (phi_b[:, pb] @ g_a[:, pa, :, None])[..., 0]
+        pair = seg_a * n_seg + seg_b
         c_k = (phi_bk @ const_a[..., None])[..., 0] + const_b
         xs = np.zeros((n_items, k_max, n))  # at the sampling instants
         u_before = np.zeros((n_items, k_max))
@@ -708,7 +734,7 @@ class LinearPredictor:
         with np.errstate(over="ignore", invalid="ignore"):
             for k in range(k_max):
                 xs[:, k] = xi
-                ybuf[:, k] = np.sum(cy_k[:, k] * xi, axis=1) + y0_k[:, k]
+                ybuf[:, k] = np.add.reduce(cy_k[:, k] * xi, axis=1) + y0_k[:, k]  # np.sum's
                 # the PI law of controllers.pi on sample k - lag, executed at offset theta
                 ok = valid[:, k]
                 err = r_exec[:, k] - ybuf[ar, m_idx[:, k]]
@@ -718,13 +744,14 @@ class LinearPredictor:
                     (v + incr < law.u_min) & (incr < 0.0)
                 )
                 incr = np.where(wind | ~ok, 0.0, incr)
-                u_new = np.where(ok, np.clip(v + incr, law.u_min, law.u_max), u_cur)
+                u_new = np.where(ok, np.minimum(np.maximum(v + incr, law.u_min), law.u_max), u_cur)
                 integral = integral + incr
                 e_prev = np.where(ok, err, e_prev)
                 u_before[:, k] = u_cur
                 u_after[:, k] = u_new
-                xi = (phi_k[:, k] @ xi[:, :, None])[:, :, 0]
-                xi += g_before[:, k] * u_cur[:, None] + g_bk[:, k] * u_new[:, None] + c_k[:, k]
+                pk = pair[:, k]
+                xi = (phi_pair[ar, pk] @ xi[:, :, None])[:, :, 0]
+                xi += g_pair[ar, pk] * u_cur[:, None] + g_bk[:, k] * u_new[:, None] + c_k[:, k]
                 u_cur = u_new
             xe = (phi_ak @ xs[..., None])[..., 0] + g_ak * u_before[..., None] + const_a
 
@@ -769,24 +796,29 @@ class LinearPredictor:
         local = np.where(after, s_g - theta_t[pick_i], s_g)
         mid_g = np.where(after, mid_b[pick_i, kp], mid_a[pick_i, kp])
         # y = [xi, u, w] . [R, rg, Rw] with the output offset in w's constant
-        z = np.where(
-            after[:, None],
-            np.concatenate([xe[pick_i, kp], u_after[pick_i, kp, None], w_b[pick_i, kp]], axis=1),
-            np.concatenate([xs[pick_i, kp], u_before[pick_i, kp, None], w_a[pick_i, kp]], axis=1),
-        )
-        first, inverse = _distinct(mid_g, local)
+        zz = np.stack(
+            [
+                np.concatenate([xs, u_before[..., None], w_a], axis=2),
+                np.concatenate([xe, u_after[..., None], w_b], axis=2),
+            ],
+            axis=2,
+        )  # items x periods x (before, after the execution) x (xi, u, w)
+        z = zz[pick_i, kp, after.astype(np.intp)]
+        first, inverse = _distinct_ticks(mid_g, local)
         R, rg, Rw = models.rows(mid_g[first], cy_rows, (local[first] / TICKS_PER_UNIT)[:, None])
         Rw[:, 0, 0] += y0_rows[mid_g[first]]
         rows = np.concatenate([R[:, 0], rg, Rw[:, 0]], axis=1)[inverse]
         with np.errstate(over="ignore", invalid="ignore"):
             y = np.sum(z * rows, axis=1)
         worst = np.zeros(n_items)
+        starts = np.flatnonzero(np.concatenate([[True], pick_i[1:] != pick_i[:-1]]))
+        t_pick = grid[pick_g]
         for t0, t1, sign, value, size in windows:
-            t_pick = grid[pick_g]
             inside = (t_pick >= t0[pick_i]) & (t_pick <= t1[pick_i])
             dev = np.where(inside, sign[pick_i, 0] * (y - value), -np.inf)
             peak = np.full(n_items, -np.inf)
-            np.maximum.at(peak, pick_i, dev)
+            if len(dev):  # pick_i is sorted: each item's picks are one run
+                peak[pick_i[starts]] = np.maximum.reduceat(dev, starts)
             with np.errstate(divide="ignore", invalid="ignore"):
                 os_pct = np.maximum(0.0, peak) / np.abs(size) * 100.0
             os_pct = np.where(np.isfinite(os_pct), os_pct, np.inf)
@@ -1107,8 +1139,19 @@ class _Solver:
         (:meth:`LoopModel.evaluate`)."""
         if self.batch is None:
             return dict(self.model.evaluate(periods, self.delays).overshoot_pct)
-        row = self.batch.overshoots(self.vector(periods)[None, :], self.delays)[0]
-        return self.as_dict(row)
+        rows = self.vector(periods)[None, :]
+        # the loops the calibration moved since the last check often end a grid step from here:
+        # their neighbours ride along in this check's batches (memoised, no batch of their own)
+        moved = np.flatnonzero(rows[0] != self.vector(self.checked[-1][0])) if self.checked else []
+        if len(moved):
+            cfg = self.model.config
+            ahead = np.repeat(rows, 2 * len(moved), axis=0)
+            for m, k in enumerate(moved):
+                for sgn, r in ((-1.0, 2 * m), (1.0, 2 * m + 1)):
+                    ahead[r, k] = _grid(ahead[r, k] + sgn * cfg.resolution, cfg.resolution)
+            keep = np.all((ahead >= cfg.resolution) & (ahead <= cfg.max_period), axis=1)
+            return self.as_dict(self.batch.overshoots(rows, self.delays, ahead[keep])[0])
+        return self.as_dict(self.batch.overshoots(rows, self.delays)[0])
 
     def check(self, periods: Mapping[str, float]) -> tuple[dict[str, float], bool]:
         """Overshoots of ``periods`` on the non-linear model (:meth:`nonlinear`), traced;
