@@ -148,16 +148,17 @@ class JCSTR:
     ) -> tuple[Any, ...]:
         """What :meth:`rhs_batch` computes from the inputs alone, once for a segment they hold
         (the RK4 steps call :meth:`rhs_batch_held` with it): ``dh`` (the level's derivative
-        while the tank holds liquid), ``F_jin`` and whether a level may reach 0 within ``span``
-        from ``x`` (without ``x``: assumed). While it holds liquid the level moves at ``dh``
-        alone, so over ``span`` it stays above ``h + span * min(dh, 0)``; twice that margin above
-        1e-9 rules the empty-tank clamp out for the segment."""
+        while the tank holds liquid), ``F_jin`` and whether a level may come down to ``H_MIN``
+        within ``span`` from ``x`` (without ``x``: assumed). While it holds liquid the level
+        moves at ``dh`` alone, so over ``span`` it stays above ``h + span * min(dh, 0)``; twice
+        that margin above ``H_MIN`` rules out, for the segment, the empty-tank clamp and the
+        ``H_MIN`` floor (``max(h, H_MIN)`` is then ``h``)."""
         f_in, a_b = p[0], p[1]
         f_out, f_jin = u
         dh = (f_in - f_out) / a_b
         low = True
         if x is not None and span is not None:
-            low = not np.fmin.reduce(x[0] + 2.0 * span * np.minimum(dh, 0.0)) > 1e-9
+            low = not np.fmin.reduce(x[0] + 2.0 * span * np.minimum(dh, 0.0)) > H_MIN + 1e-9
         return (dh, f_jin, low)
 
     @staticmethod
@@ -170,9 +171,11 @@ class JCSTR:
         f_in, a_b, alpha, pi_d, t_in, t_jin, v_j = p
         h, temp, temp_j = x
         dh, f_jin, low = held
-        if low and np.fmin.reduce(h) <= 0.0:  # some h <= 0 (fmin skips NaN)
-            dh = np.where((h <= 0.0) & (dh < 0.0), 0.0, dh)
-        h_eff = np.maximum(h, H_MIN)  # rhs_tuple's choice for every non-NaN level
+        h_eff = h  # every level above H_MIN (a NaN level stays NaN either way)
+        if low:
+            if np.fmin.reduce(h) <= 0.0:  # some h <= 0 (fmin skips NaN)
+                dh = np.where((h <= 0.0) & (dh < 0.0), 0.0, dh)
+            h_eff = np.maximum(h, H_MIN)  # rhs_tuple's choice for every non-NaN level
         q = alpha * (a_b + pi_d * h_eff) * (temp_j - temp)
         d_temp = (f_in * (t_in - temp) + q) / (a_b * h_eff)
         d_temp_j = (f_jin * (t_jin - temp_j) - q) / v_j

@@ -98,11 +98,16 @@ class _Plant:
 
 @dataclass(frozen=True)
 class _Executions:
-    """One loop's executions in a batch, sorted by stop (those at stop ``j`` are
-    ``bounds[j]:bounds[j + 1]``), with everything about them that does not depend on the state."""
+    """Every loop's executions in a batch, sorted by stop (those at stop ``j`` are
+    ``bounds[j]:bounds[j + 1]``), with everything about them that does not depend on the state;
+    the loops of an item are independent there (own integral, own actuator), so the executions
+    of a stop run as one vector whatever their loop."""
 
     bounds: list[int]
     item: NDArray[np.int64]  # the executing item
+    state: NDArray[np.int64]  # its PI state: slot * items + item
+    act: NDArray[np.int64]  # its actuator in the flattened inputs: input * items + item
+    out: NDArray[np.int64] | int  # the output it uses (one int when every loop uses the same)
     src: NDArray[np.int64]  # the stop of the sample it uses
     values: NDArray[np.float64]  # rows: set point, feedforward, Kp, Ki, u_min, u_max, dt
     started: NDArray[np.bool_]  # whether the item executed before (else no integration)
@@ -110,7 +115,7 @@ class _Executions:
 
 
 def _executions(
-    slot: int,
+    first: _Plant,
     S: NDArray[np.int64],
     T: NDArray[np.float64],
     D: NDArray[np.int64],
@@ -123,37 +128,75 @@ def _executions(
     stretch: NDArray[np.int64],
     flat: NDArray[np.int64],
 ) -> _Executions:
-    """Loop ``slot``'s executions in the stops ``S`` (stops x items): at stop ``j`` item ``i``
-    executes when ``S - tau_d`` is a sampling instant, on the sample of the stop at ``S -
-    tau_d``, with the set point and feedforward of the stretch in force; ``dt`` is the time
-    since its previous execution (``t - t_prev`` as :class:`controllers.pi.PI` takes it)."""
+    """The loops' executions in the stops ``S`` (stops x items): at stop ``j`` item ``i``
+    executes loop ``l`` when ``S - tau_d`` is a sampling instant, on the sample of the stop at
+    ``S - tau_d``, with the set point and feedforward of the stretch in force; ``dt`` is the
+    time since its previous execution (``t - t_prev`` as :class:`controllers.pi.PI` takes
+    it)."""
     L, B = S.shape
     ar = np.arange(B)
-    d, h = D[None, :, slot], H[None, :, slot]
-    execs = valid & (S >= d) & ((S - d) % h == 0)
-    src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
-    src = src.reshape(B, L).T - (ar * L)[None, :]
-    item, stop = np.nonzero(execs.T)  # by item, then stop
-    t = T[stop, item]
-    started = np.zeros(len(item), dtype=bool)
-    started[1:] = item[1:] == item[:-1]
-    t_prev = np.zeros(len(item))
-    t_prev[1:] = t[:-1]
-    dt = t - np.where(started, t_prev, 0.0)
-    order = np.lexsort((item, stop))  # by stop, then item
-    item, stop, dt, started = item[order], stop[order], dt[order], started[order]
-    laws = [p.laws[slot] for p in plants]
-    law = np.array([[lw.Kp, lw.Ki, lw.u_min, lw.u_max] for lw in laws]).T[:, item]
-    k = stretch[stop, item]
-    values = np.vstack([sp[item, k, slot], ubar[item, k, slot], law, dt])
-    fwd = np.array([lw.integration == "forward" for lw in laws])[item]
+    parts: list[list[NDArray[Any]]] = []
+    for slot in range(len(first.loops)):
+        d, h = D[None, :, slot], H[None, :, slot]
+        execs = valid & (S >= d) & ((S - d) % h == 0)
+        src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
+        src = src.reshape(B, L).T - (ar * L)[None, :]
+        item, stop = np.nonzero(execs.T)  # by item, then stop
+        t = T[stop, item]
+        started = np.zeros(len(item), dtype=bool)
+        started[1:] = item[1:] == item[:-1]
+        t_prev = np.zeros(len(item))
+        t_prev[1:] = t[:-1]
+        dt = t - np.where(started, t_prev, 0.0)
+        laws = [p.laws[slot] for p in plants]
+        law = np.array([[lw.Kp, lw.Ki, lw.u_min, lw.u_max] for lw in laws]).T[:, item]
+        k = stretch[stop, item]
+        values = np.vstack([sp[item, k, slot], ubar[item, k, slot], law, dt])
+        fwd = np.array([lw.integration == "forward" for lw in laws])[item]
+        n = len(item)
+        parts.append(
+            [
+                stop,
+                np.full(n, slot),
+                item,
+                src[stop, item],
+                np.full(n, first.act_idx[slot]),
+                np.full(n, first.out_idx[slot]),
+                values.T,
+                started,
+                fwd,
+            ]
+        )
+    stop, slot_, item, src, act, out, values, started, fwd = (
+        np.concatenate(col) for col in zip(*parts, strict=True)
+    )
+    order = np.lexsort((item, slot_, stop))  # by stop, then loop, then item
+    stop, slot_, item, src = stop[order], slot_[order], item[order], src[order]
+    act, out, values, started, fwd = (
+        act[order],
+        out[order],
+        values[order],
+        started[order],
+        fwd[order],
+    )
     forward: NDArray[np.bool_] | bool | None = fwd
     if fwd.all():
         forward = True
     elif not fwd.any():
         forward = None
+    outs = set(first.out_idx)
     bounds = np.concatenate([[0], np.cumsum(np.bincount(stop, minlength=L))]).tolist()
-    return _Executions(bounds, item, src[stop, item], values, started, forward)
+    return _Executions(
+        bounds=bounds,
+        item=item,
+        state=slot_ * B + item,
+        act=act * B + item,
+        out=outs.pop() if len(outs) == 1 else out,
+        src=src,
+        values=np.ascontiguousarray(values.T),
+        started=started,
+        forward=forward,
+    )
 
 
 class BatchTrials:
@@ -368,16 +411,14 @@ class BatchTrials:
         flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
         stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
         # the executions of each loop, everything about them that is not state gathered here
-        ex = [
-            _executions(slot, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
-            for slot in range(n_loops)
-        ]
-        integral = np.zeros((n_loops, B))
-        e_prev = np.zeros((n_loops, B))
+        ex = _executions(first, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
+        integral = np.zeros(n_loops * B)  # PI state, slot * items + item
+        e_prev = np.zeros(n_loops * B)
         # -- the state of every item, states x items: rk4_tuple's arithmetic element by element
         params = tuple(np.array(col) for col in zip(*(p.params for p in plants), strict=True))
         X = np.array([p.x0 for p in plants], dtype=float).T.copy()
         U = np.array([p.u0 for p in plants]).T.copy()  # inputs x items
+        U_flat = U.reshape(-1)  # a view: input * items + item
         f = first.kind.rhs_batch
         # the terms of the plant's rhs that the inputs fix, once per segment, when it offers them
         held = getattr(first.kind, "rhs_batch_inputs", None)
@@ -388,30 +429,31 @@ class BatchTrials:
         with np.errstate(all="ignore"):
             for j in range(L):
                 XS[j] = X
-                for slot in range(n_loops):
-                    e_x = ex[slot]
-                    a, b = e_x.bounds[j], e_x.bounds[j + 1]
-                    if a == b:
-                        continue
-                    idx, src = e_x.item[a:b], e_x.src[a:b]
-                    r, ub, kp, ki, lo, hi, dt = e_x.values[:, a:b]
-                    y = outputs(XS[src, :, idx].T)[first.out_idx[slot]]  # the sample used
-                    e = r - y
-                    if e_x.forward is None:
-                        err_i = e
-                    elif e_x.forward is True:
-                        err_i = e_prev[slot, idx]
+                a, b = ex.bounds[j], ex.bounds[j + 1]
+                if a != b:  # the executions at this stop, every loop's at once
+                    idx, st = ex.item[a:b], ex.state[a:b]
+                    r, ub, kp, ki, lo, hi, dt = ex.values[:, a:b]
+                    y_all = outputs(XS[ex.src[a:b], :, idx].T)  # the samples used
+                    if isinstance(ex.out, int):
+                        y = y_all[ex.out]
                     else:
-                        err_i = np.where(e_x.forward[a:b], e_prev[slot, idx], e)
-                    incr = np.where(e_x.started[a:b], ki * err_i * dt, 0.0)
+                        y = np.array(y_all)[ex.out[a:b], np.arange(b - a)]
+                    e = r - y
+                    if ex.forward is None:
+                        err_i = e
+                    elif ex.forward is True:
+                        err_i = e_prev[st]
+                    else:
+                        err_i = np.where(ex.forward[a:b], e_prev[st], e)
+                    incr = np.where(ex.started[a:b], ki * err_i * dt, 0.0)
                     base = ub + kp * e
-                    i_now = integral[slot, idx]
+                    i_now = integral[st]
                     v = base + i_now + incr
                     wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
                     now = i_now + np.where(wind, 0.0, incr)
-                    integral[slot, idx] = now
-                    U[first.act_idx[slot], idx] = np.minimum(np.maximum(base + now, lo), hi)
-                    e_prev[slot, idx] = e
+                    integral[st] = now
+                    U_flat[ex.act[a:b]] = np.minimum(np.maximum(base + now, lo), hi)
+                    e_prev[st] = e
                 if j == L - 1:
                     break
                 if not n_here[j]:

@@ -32,7 +32,9 @@ agent's whole set-point test (the test, step phases and end time of
   ill-conditioned), the whole batch (candidates x step phases) advancing together in numpy;
   the output is evaluated between the samples too, on the agent's monitoring grid (the plant's
   ``monitor_period``: where the agent judges the plant output), in the periods whose output at
-  the sampling and execution instants comes within a tenth of the step of the largest.
+  the sampling and execution instants comes within 2 % of the step of the largest (a tenth
+  before issue 20; every prediction of the N-loop problems and of the worked example's grid of
+  delays is the same to the bit with either).
 
 The overshoot is measured as :func:`core.record.loop_metrics` does (from the loop's step to
 its next step or the end), worst case over the step phases. The JCSTR level, a linear plant,
@@ -731,6 +733,10 @@ class LinearPredictor:
         e_prev = np.zeros(n_items)
         m_idx = np.maximum(m_exec, 0)
         later = m_exec > 0  # the first execution does not integrate (controllers.pi)
+        not_ok = ~valid
+        all_ok = valid.all(axis=0).tolist()
+        all_later = later.all(axis=0).tolist()
+        lo_v, hi_v = law.u_min, law.u_max
         with np.errstate(over="ignore", invalid="ignore"):
             for k in range(k_max):
                 xs[:, k] = xi
@@ -738,12 +744,24 @@ class LinearPredictor:
                 # the PI law of controllers.pi on sample k - lag, executed at offset theta
                 ok = valid[:, k]
                 err = r_exec[:, k] - ybuf[ar, m_idx[:, k]]
-                incr = np.where(later[:, k], law.ki * (e_prev if law.forward else err) * h, 0.0)
+                incr = law.ki * (e_prev if law.forward else err) * h
+                if not all_later[k]:
+                    incr = np.where(later[:, k], incr, 0.0)
                 v = ub_exec[:, k] + law.kp * err + integral
-                wind = ((v + incr > law.u_max) & (incr > 0.0)) | (
-                    (v + incr < law.u_min) & (incr < 0.0)
-                )
-                incr = np.where(wind | ~ok, 0.0, incr)
+                vi = v + incr
+                if all_ok[k] and lo_v <= np.fmin.reduce(vi) and np.fmax.reduce(vi) <= hi_v:
+                    # every item executes, none saturates: the law without its clamps
+                    integral = integral + incr
+                    e_prev = err
+                    u_before[:, k] = u_cur
+                    u_after[:, k] = vi
+                    pk = pair[:, k]
+                    xi = (phi_pair[ar, pk] @ xi[:, :, None])[:, :, 0]
+                    xi += g_pair[ar, pk] * u_cur[:, None] + g_bk[:, k] * vi[:, None] + c_k[:, k]
+                    u_cur = vi
+                    continue
+                wind = ((vi > law.u_max) & (incr > 0.0)) | ((vi < law.u_min) & (incr < 0.0))
+                incr = np.where(wind | not_ok[:, k], 0.0, incr)
                 u_new = np.where(ok, np.minimum(np.maximum(v + incr, law.u_min), law.u_max), u_cur)
                 integral = integral + incr
                 e_prev = np.where(ok, err, e_prev)
@@ -757,7 +775,7 @@ class LinearPredictor:
 
         # the output on the agent's monitoring grid, and the overshoot of loop i's steps: the
         # grid is evaluated in the periods whose output at the events (samples, executions)
-        # comes within a tenth of the step of the largest, where the peak lies
+        # comes within 2 % of the step of the largest, where the peak lies
         own = [s for s in range(n_steps) if steps[s][1] == li]
         if not own:
             return np.zeros(n_items)
@@ -783,7 +801,7 @@ class LinearPredictor:
                 env = np.maximum(env, np.where(inside, sign * (yy - step_value[s]), -np.inf))
             top = env.max(axis=1, keepdims=True)
             edges = (kk[None, :] == (t0 // hi)[:, None]) | (kk[None, :] == (t1 // hi)[:, None])
-            cand |= (env >= top - 0.1 * np.abs(size)[:, None]) | edges
+            cand |= (env >= top - 0.02 * np.abs(size)[:, None]) | edges
             windows.append((t0, t1, sign, step_value[s], size))
         dt_mon = to_ticks(plant.monitor)
         g_lo = -(-int(t_step[:, own].min()) // dt_mon)
