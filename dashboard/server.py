@@ -40,9 +40,11 @@ from core.errors import ConfigError
 from dashboard.commands import CommandError, parse
 from dashboard.feed import HistoryFeed
 from dashboard.view import RunView
+from kernel.security import SECURITY_DIR
 from runtime.artefacts import HISTORY_FILE, RUN_FILE, SCENARIO_FILE
 from runtime.inject import send
 from runtime.scenario import load_scenario
+from runtime.security import DASHBOARD, credentials_of
 
 __all__ = ["Dashboard", "create_app", "serve", "STATIC"]
 
@@ -72,9 +74,7 @@ def _run_info(run_dir: Path) -> RunInfo:
 class Dashboard:
     """The state one app serves: the run, its history feed and view, the connected pages."""
 
-    def __init__(
-        self, run_dir: str | Path, *, poll_s: float = 0.1, max_points: int = 2000
-    ) -> None:
+    def __init__(self, run_dir: str | Path, *, poll_s: float = 0.1, max_points: int = 2000) -> None:
         self.run_dir = Path(run_dir)
         self.info = _run_info(self.run_dir)
         if self.info.engine == "direct":
@@ -177,9 +177,17 @@ class Dashboard:
                 "reason": "the run has ended: a replay takes no requests",
             }
         assert self.info.endpoint is not None and self.info.run_id is not None
+        security = self.run_dir / SECURITY_DIR  # a secure run: the dashboard's own identity
+        creds = credentials_of(security, DASHBOARD) if security.is_dir() else None
         try:
             await anyio.to_thread.run_sync(
-                lambda: send(self.info.endpoint, self.info.run_id, command.request, timeout=5.0)
+                lambda: send(
+                    self.info.endpoint,
+                    self.info.run_id,
+                    command.request,
+                    timeout=5.0,
+                    settings=creds,
+                )
             )
         except ConfigError as err:
             return {"type": "error", "id": command.id, "reason": str(err)}
@@ -210,8 +218,12 @@ def create_app(dashboard: Dashboard) -> Starlette:
 
     async def status(request: Request) -> JSONResponse:
         return JSONResponse(
-            {"live": dashboard.live, "t": dashboard.view.t, "rows": dashboard.view.rows,
-             "finished": dashboard.finished is not None}
+            {
+                "live": dashboard.live,
+                "t": dashboard.view.t,
+                "rows": dashboard.view.rows,
+                "finished": dashboard.finished is not None,
+            }
         )
 
     async def socket(ws: WebSocket) -> None:

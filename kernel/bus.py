@@ -3,19 +3,26 @@
 One function turns a :class:`BusConfig` into a ``zenoh.Config`` (zenoh-python's ``common.py``
 recipe: JSON5 paths, plus raw ``KEY:VALUE`` overrides). Multicast scouting is off: every session
 connects to an explicit endpoint, by default a router on the loopback interface.
+
+A base configuration file (``--zenoh-config FILE``, else the ``ZENOH_CONFIG`` environment
+variable) is read first; what the run needs (mode, endpoints, its security settings from
+:mod:`kernel.security`) is set on top of it.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import threading
-from typing import Literal
+from pathlib import Path
+from typing import Any, Literal
 
 import zenoh
 from pydantic import BaseModel, ConfigDict
 
 from bus_schemas import codec
 from core.errors import ConfigError
+from kernel.security import client_settings, read_credential
 
 __all__ = [
     "BusConfig",
@@ -27,6 +34,9 @@ __all__ = [
     "is_put",
     "put_when_heard",
     "init_zenoh_log",
+    "base_config",
+    "CONFIG_ENV",
+    "CREDENTIALS_ENV",
 ]
 
 Session = zenoh.Session
@@ -74,11 +84,36 @@ class BusConfig(BaseModel):
     connect: tuple[str, ...] = ()
     multicast_scouting: bool = False
     overrides: tuple[str, ...] = ()  # raw "json5/path:VALUE" entries, applied last
+    settings: dict[str, Any] = {}  # json5 path -> value (security: kernel.security)
+    config_file: str | None = None  # a zenoh configuration file to start from
+
+
+CREDENTIALS_ENV = "WNCS_CREDENTIALS"
+"""The environment variable naming the credential file (:mod:`kernel.security`) a client
+session authenticates with when it is given no settings (``wncs node`` sets it from
+``--credentials FILE``, or from ``WNCS_SECURITY`` and the node's name)."""
+
+CONFIG_ENV = "ZENOH_CONFIG"
+"""The environment variable naming a zenoh configuration file, when ``--zenoh-config`` is not
+given."""
+
+
+def base_config(path: str | None = None) -> zenoh.Config:
+    """A zenoh configuration read from ``path``, else from ``$ZENOH_CONFIG``, else the default."""
+    path = path or os.environ.get(CONFIG_ENV) or None
+    if path is None:
+        return zenoh.Config()
+    if not Path(path).is_file():
+        raise ConfigError(f"zenoh configuration {path}: no such file")
+    try:
+        return zenoh.Config.from_file(path)
+    except zenoh.ZError as err:
+        raise ConfigError(f"zenoh configuration {path}: {err}") from err
 
 
 def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     """Build the ``zenoh.Config`` of ``cfg``."""
-    conf = zenoh.Config()
+    conf = base_config(cfg.config_file)
     conf.insert_json5("mode", json.dumps(cfg.mode))
     if cfg.listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
@@ -87,6 +122,8 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
     if cfg.mode == "router":
         conf.insert_json5("adminspace/enabled", "true")
+    for path, value in cfg.settings.items():
+        conf.insert_json5(path, json.dumps(value))
     for item in cfg.overrides:
         path, sep, value = item.partition(":")
         if not sep:
@@ -95,10 +132,28 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     return conf
 
 
-def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]:
-    """Open an embedded router listening on ``listen``; return it and its actual locators."""
+def open_router(
+    listen: str = DEFAULT_LISTEN,
+    *,
+    connect: tuple[str, ...] = (),
+    settings: dict[str, Any] | None = None,
+    config_file: str | None = None,
+) -> tuple[zenoh.Session, list[str]]:
+    """Open a router listening on ``listen`` (and joining the routers at ``connect``), with
+    ``settings`` (its security: :func:`kernel.security.router_settings`); return it and its
+    actual locators."""
     init_zenoh_log()
-    session = zenoh.open(zenoh_config(BusConfig(mode="router", listen=(listen,))))
+    cfg = BusConfig(
+        mode="router",
+        listen=(listen,),
+        connect=connect,
+        settings=settings or {},
+        config_file=config_file,
+    )
+    try:
+        session = zenoh.open(zenoh_config(cfg))
+    except zenoh.ZError as err:
+        raise ConfigError(f"cannot open a router on {listen!r}: {err}") from err
     locators: list[str] = []
     for reply in session.get(f"@/{session.info.zid()}/router"):
         if reply.ok is not None:
@@ -109,19 +164,31 @@ def open_router(listen: str = DEFAULT_LISTEN) -> tuple[zenoh.Session, list[str]]
     return session, locators
 
 
-def open_client(connect: str) -> zenoh.Session:
-    """Open a client session connected to the router at ``connect``.
+def open_client(
+    connect: str, *, settings: dict[str, Any] | None = None, config_file: str | None = None
+) -> zenoh.Session:
+    """Open a client session connected to the router at ``connect``, with ``settings`` (its
+    credentials: :func:`kernel.security.client_settings`).
 
     Raises
     ------
     ConfigError
-        If no router answers at ``connect`` (a run that has ended, a wrong endpoint).
+        If no router answers at ``connect`` (a run that has ended, a wrong endpoint), or it
+        refuses the credentials (none, or another run's).
     """
     init_zenoh_log()
+    if settings is None and os.environ.get(CREDENTIALS_ENV):
+        settings = client_settings(read_credential(Path(os.environ[CREDENTIALS_ENV])))
+    cfg = BusConfig(
+        mode="client", connect=(connect,), settings=settings or {}, config_file=config_file
+    )
     try:
-        return zenoh.open(zenoh_config(BusConfig(mode="client", connect=(connect,))))
+        return zenoh.open(zenoh_config(cfg))
     except zenoh.ZError as err:
-        raise ConfigError(f"no router answers at {connect} (has the run ended?): {err}") from err
+        raise ConfigError(
+            f"no router answers at {connect}, or it refused this session's credentials "
+            f"(has the run ended? is it a secure run?): {err}"
+        ) from err
 
 
 def is_put(sample: zenoh.Sample) -> bool:
@@ -129,10 +196,18 @@ def is_put(sample: zenoh.Sample) -> bool:
     return bool(sample.kind == zenoh.SampleKind.PUT)
 
 
-def put_when_heard(connect: str, key: str, payload: bytes, *, timeout: float) -> bool:
-    """Publish ``payload`` once on ``key`` from a new client of the router at ``connect``, as
-    soon as a subscriber matches; ``False`` (nothing sent) if none does within ``timeout`` s."""
-    session = open_client(connect)
+def put_when_heard(
+    connect: str,
+    key: str,
+    payload: bytes,
+    *,
+    timeout: float,
+    settings: dict[str, Any] | None = None,
+) -> bool:
+    """Publish ``payload`` once on ``key`` from a new client of the router at ``connect`` (with
+    ``settings``, its credentials), as soon as a subscriber matches; ``False`` (nothing sent)
+    if none does within ``timeout`` s."""
+    session = open_client(connect, settings=settings)
     try:
         publisher = session.declare_publisher(
             key,

@@ -2,6 +2,7 @@
 
 ``wncs run SCENARIO --out DIR``        run a scenario (engines: processes, threads, direct)
 ``wncs node SCENARIO NAME --connect EP --run-id ID``   run one node of the graph (or ``clock``)
+``wncs router --scenario S --listen EP --out DIR``  a standalone router of a multi-host run
 ``wncs report DIR``                    redraw a run's plots and print its figures
 ``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
 ``wncs inject DIR EVENT [KEY=VALUE ...]``  a reconfiguration, mode or set point into a live run
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import signal
 import subprocess
 import sys
@@ -40,7 +42,8 @@ from agents.monitor.command import add_assess_arguments, run_from_args
 from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
 from dashboard import command as dashboard_command
-from kernel.bus import init_zenoh_log
+from kernel.bus import CONFIG_ENV, CREDENTIALS_ENV, init_zenoh_log
+from kernel.security import SECURITY_DIR, client_settings, credential_path, read_credential
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
 from runtime.export import export_run
@@ -48,8 +51,10 @@ from runtime.forkserver import run_node
 from runtime.inject import build_request, send
 from runtime.launcher import INTERRUPTED, launch
 from runtime.report import load_run, write_plots, write_summary
+from runtime.router import serve_router
 from runtime.scale import PLANTS, write_scale
 from runtime.scenario import Scenario, load_scenario
+from runtime.security import INJECT, SECURITY_ENV, credentials_of
 from runtime.sweep import SWEEP_CSV, SWEEP_PARQUET, SWEEP_PNG, parse_axis, sweep
 
 __all__ = ["main", "build_parser", "EXAMPLES"]
@@ -81,6 +86,11 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "wncs node scenarios/tank_sim.yaml clock --connect tcp/127.0.0.1:7447 --run-id r1",
         "wncs node scenarios/tank_sim.yaml level_controller --connect tcp/127.0.0.1:7447"
         " --run-id r1",
+    ),
+    "router": (
+        "wncs router --scenario scenarios/tank_sim.yaml --listen tcp/127.0.0.1:7447 --out runs/mh",
+        "wncs router --scenario scenarios/tank_sim.yaml --listen tcp/127.0.0.1:7448"
+        " --connect tcp/127.0.0.1:7447 --out runs/mh",
     ),
     "report": ("wncs report runs/bench",),
     "analyze": (
@@ -235,6 +245,18 @@ def build_parser() -> argparse.ArgumentParser:
         f"{dashboard_command.DEFAULT_PORT}) while the run goes on, and the finished run after "
         "it, until Ctrl-C; best with --realtime",
     )
+    run.add_argument(
+        "--insecure",
+        action="store_true",
+        help="no credentials and no access control on the router (prints a warning); by "
+        "default each node authenticates and may publish only its own keys",
+    )
+    run.add_argument(
+        "--zenoh-config",
+        default=None,
+        metavar="FILE",
+        help="zenoh configuration file the router starts from (default: $ZENOH_CONFIG)",
+    )
     run.add_argument("--quiet", action="store_true", help="print only errors")
     run.add_argument(
         "--force",
@@ -254,6 +276,19 @@ def build_parser() -> argparse.ArgumentParser:
     node.add_argument("name", help="node name, or 'clock' / 'historian'")
     node.add_argument("--connect", required=True, help="router endpoint, e.g. tcp/127.0.0.1:7447")
     node.add_argument("--run-id", required=True, help="the run's id (key prefix on the bus)")
+    node.add_argument(
+        "--credentials",
+        default=None,
+        metavar="FILE",
+        help="the node's credential file (default: NAME.json in $WNCS_SECURITY, the run's "
+        "security directory, if set)",
+    )
+    node.add_argument(
+        "--zenoh-config",
+        default=None,
+        metavar="FILE",
+        help="zenoh configuration file the session starts from (default: $ZENOH_CONFIG)",
+    )
     node.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     node.add_argument("--out", default=".", help="historian: directory of history.sqlite")
     node.add_argument("--engine", default="processes", help="historian: engine recorded in meta")
@@ -265,6 +300,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="clock: real-time pacing",
     )
     _add_set(node)
+
+    router = _command(
+        sub,
+        "router",
+        "a standalone router of a run whose nodes live on several hosts",
+        "Serve a run's zenoh router with the run's security (credentials and access control "
+        "under DIR/security, made by the first router of the run; copy them to the other "
+        "hosts). A router with --connect joins another router of the run. Nodes join with "
+        "wncs node SCENARIO NAME --connect ENDPOINT --run-id ID and WNCS_SECURITY=DIR/security "
+        "(or --credentials DIR/security/NAME.json). Serves until Ctrl-C.",
+    )
+    router.add_argument("--scenario", required=True, help="scenario YAML file")
+    router.add_argument("--listen", required=True, metavar="ENDPOINT", help="e.g. tcp/0.0.0.0:7447")
+    router.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="another router of the run to join (repeatable)",
+    )
+    router.add_argument(
+        "--out", required=True, metavar="DIR", help="the run's directory (run.json, security/)"
+    )
+    router.add_argument("--insecure", action="store_true", help="no credentials, no access control")
+    router.add_argument("--zenoh-config", default=None, metavar="FILE", help="zenoh config file")
+    _add_set(router)
 
     report = _command(sub, "report", "redraw a run's plots and print its figures")
     report.add_argument("dir", metavar="DIR", help="run directory written by wncs run")
@@ -320,6 +381,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--listen", default=None, metavar="ENDPOINT", help="router endpoint, instead of DIR"
     )
     inject.add_argument("--run-id", default=None, help="run id, with --listen")
+    inject.add_argument(
+        "--credentials",
+        default=None,
+        metavar="FILE",
+        help="the inject identity's credential file of a secure run (default with DIR: "
+        "DIR/security/inject.json)",
+    )
 
     dashboard = _command(
         sub,
@@ -501,6 +569,8 @@ def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> i
         overrides=args.set,
         force=args.force,
         on_start=on_start,
+        insecure=args.insecure,
+        zenoh_config=args.zenoh_config,
     )
     if result.code == INTERRUPTED:
         where = f"; partial results in {args.out}" if result.summary else ""
@@ -536,6 +606,18 @@ def _cmd_node(args: argparse.Namespace) -> int:
         out=args.out,
         engine=args.engine,
         realtime=args.realtime,
+    )
+
+
+def _cmd_router(args: argparse.Namespace) -> int:
+    return serve_router(
+        args.scenario,
+        Path(args.out),
+        args.listen,
+        connect=tuple(args.connect),
+        insecure=args.insecure,
+        zenoh_config=args.zenoh_config,
+        overrides=tuple(args.set),
     )
 
 
@@ -596,7 +678,12 @@ def _cmd_inject(args: argparse.Namespace) -> int:
         if not endpoint:
             raise ConfigError(f"{run_dir / RUN_FILE}: the run has no bus (direct engine)")
     request = build_request(words[0], words[1:], run_dir=run_dir, network=args.network)
-    send(endpoint, run_id, request)
+    creds = None
+    if args.credentials:
+        creds = client_settings(read_credential(Path(args.credentials)))
+    elif run_dir is not None and (run_dir / SECURITY_DIR).is_dir():
+        creds = credentials_of(run_dir / SECURITY_DIR, INJECT)
+    send(endpoint, run_id, request, settings=creds)
     what = request.event or (
         f"mode {request.mode}" if request.mode is not None else f"set point {request.setpoint}"
     )
@@ -676,6 +763,19 @@ def _cmd_scale(args: argparse.Namespace) -> int:
     return 0
 
 
+def _use_node_credentials(args: argparse.Namespace) -> None:
+    """``wncs node``: the credentials its session opens with (``kernel.bus.CREDENTIALS_ENV``),
+    from ``--credentials``, else ``NAME.json`` in ``$WNCS_SECURITY``; and its zenoh
+    configuration file (``--zenoh-config``)."""
+    security = os.environ.get(SECURITY_ENV)
+    if args.credentials:
+        os.environ[CREDENTIALS_ENV] = args.credentials
+    elif security:
+        os.environ[CREDENTIALS_ENV] = str(credential_path(Path(security), args.name))
+    if args.zenoh_config:
+        os.environ[CONFIG_ENV] = args.zenoh_config
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -683,10 +783,13 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     if args.command in ("run", "inject"):
         init_zenoh_log("off")  # this process's stdout is the terminal: kernel.bus.init_zenoh_log
+    if args.command == "node":
+        _use_node_credentials(args)
     try:
         commands = {
             "run": _cmd_run,
             "node": _cmd_node,
+            "router": _cmd_router,
             "report": _cmd_report,
             "inject": _cmd_inject,
             "analyze": _cmd_analyze,

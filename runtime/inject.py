@@ -136,10 +136,19 @@ def build_request(
     return InjectRequest(network=network, event=event.model_dump(mode="json"))
 
 
-def send(endpoint: str, run_id: str, request: InjectRequest, *, timeout: float = 10.0) -> None:
-    """Publish the request to the run's clock once the clock is listening."""
+def send(
+    endpoint: str,
+    run_id: str,
+    request: InjectRequest,
+    *,
+    timeout: float = 10.0,
+    settings: dict[str, Any] | None = None,
+) -> None:
+    """Publish the request to the run's clock once the clock is listening (with ``settings``,
+    the ``inject`` identity's credentials of a secure run: :mod:`runtime.security`)."""
     payload = codec.encode(run=run_id, src=INJECT_SOURCE, seq=0, round=0, t=0, body=request)
-    if not put_when_heard(endpoint, keys.full(run_id, keys.inject()), payload, timeout=timeout):
+    key = keys.full(run_id, keys.inject())
+    if not put_when_heard(endpoint, key, payload, timeout=timeout, settings=settings):
         raise ConfigError(f"no clock of run {run_id!r} is listening at {endpoint}")
 
 

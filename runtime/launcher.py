@@ -33,6 +33,7 @@ from core.errors import ConfigError, NodeFault, SchemaError
 from core.time import to_units
 from kernel.bus import DEFAULT_LISTEN, is_put, open_client, open_router
 from kernel.clock import ClockRunner
+from kernel.security import router_settings
 from runtime.artefacts import RUN_FILE, SCENARIO_FILE
 from runtime.direct import simulate
 from runtime.forked import ForkServer
@@ -40,6 +41,8 @@ from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
+from runtime.security import SECURITY_ENV, credentials_of, warn_insecure
+from runtime.security import prepare as prepare_security
 
 __all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
 
@@ -170,6 +173,8 @@ def launch(
     overrides: Sequence[str] = (),
     force: bool = False,
     on_start: Callable[[Path], None] | None = None,
+    insecure: bool = False,
+    zenoh_config: str | None = None,
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
@@ -179,6 +184,9 @@ def launch(
     an ``out`` that cannot be written is refused too, before anything starts.
     ``on_start(out)`` is called once ``out/run.json`` names the run's router (a bus engine),
     before the nodes start: ``wncs run --dashboard`` starts its dashboard there.
+    A bus run is secure unless ``insecure`` (:mod:`runtime.security`: per-node credentials and
+    the router's access control under ``out/security``); ``zenoh_config`` is a zenoh
+    configuration file the router starts from (else ``$ZENOH_CONFIG``).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -221,6 +229,8 @@ def launch(
         progress=progress,
         wall0=wall0,
         on_start=on_start,
+        insecure=insecure,
+        zenoh_config=zenoh_config,
     )
 
 
@@ -257,11 +267,24 @@ def _launch_bus(
     progress: TextIO | None,
     wall0: float,
     on_start: Callable[[Path], None] | None,
+    insecure: bool = False,
+    zenoh_config: str | None = None,
 ) -> RunResult:
     run_id = run_info["run_id"]
-    router, locators = open_router(listen or DEFAULT_LISTEN)
+    listen = listen or DEFAULT_LISTEN
+    security = None if insecure else prepare_security(out, scenario, run_id)
+    warn_insecure(listen, secure=security is not None)
+    router, locators = open_router(
+        listen,
+        settings=None if security is None else router_settings(security),
+        config_file=zenoh_config,
+    )
     endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
     run_info["endpoint"] = endpoint
+    run_info["secure"] = security is not None
+    previous = os.environ.pop(SECURITY_ENV, None)
+    if security is not None:  # node processes find their credentials here (wncs node)
+        os.environ[SECURITY_ENV] = str(security.resolve())
     _write_json(out / RUN_FILE, run_info)
     if on_start is not None:
         on_start(out)
@@ -303,12 +326,16 @@ def _launch_bus(
                 realtime,
                 engine,
                 prog,
+                security,
             )
     finally:
         prog.show(final=True)
         for s in subs:
             s.undeclare()
         router.close()
+        os.environ.pop(SECURITY_ENV, None)
+        if previous is not None:
+            os.environ[SECURITY_ENV] = previous
     wall_end = time.perf_counter()
     if prog.stop is not None and not prog.stop.ok and error is None:
         error = prog.stop.reason
@@ -502,6 +529,7 @@ def _run_threads(
     realtime: float | None,
     engine: str,
     prog: _Progress,
+    security: Path | None = None,
 ) -> tuple[int, str | None, float | None]:
     errors: dict[str, str] = {}
     result: dict[str, int] = {}
@@ -516,7 +544,8 @@ def _run_threads(
         session = None
         try:
             with gate:  # a few at a time: see _STARTING_AT_ONCE
-                session = open_client(endpoint)
+                creds = None if security is None else credentials_of(security, name)
+                session = open_client(endpoint, settings=creds)
                 if name == "clock":
                     runner = clock_runner(scenario, session, run_id, realtime=realtime)
                     clock.append(runner)

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 from agents.monitor.config import MonitorNodeConfig
 from bus_schemas import keys
-from runtime.scenario import OperatorNodeConfig, Scenario
+from runtime.scenario import ControllerNodeConfig, OperatorNodeConfig, Scenario
 
-__all__ = ["CLOCK", "publishers", "owners_of"]
+__all__ = ["CLOCK", "publishers", "readers", "owners_of"]
 
 CLOCK = "clock"
 """The clock's name on the bus (it stamps external requests as its own messages)."""
@@ -71,3 +71,26 @@ def owners_of(table: dict[str, tuple[str, ...]], key: str) -> frozenset[str]:
     return frozenset(
         n for n, patterns in table.items() if any(keys.intersects(p, key) for p in patterns)
     )
+
+
+def readers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
+    """Participant -> the run-relative key expressions it may subscribe to, by its role (what
+    the router's access control lets it read; a test checks that every node kind's
+    subscriptions in every scenario fall inside them). Wider than one node's subscriptions
+    where a role reads a family of keys (a controller any loop's ``meas``), so that the grant
+    costs no behaviour to build (the agent's takes seconds)."""
+    out: dict[str, set[str]] = {n: set() for n in scenario.participants()}
+    for plant in scenario.plants():
+        out[plant] |= {f"plant/{plant}/actuator/*", f"plant/{plant}/sampling/*"}
+    for controller in scenario.nodes_of(ControllerNodeConfig):
+        out[controller] |= {"loop/*/meas", "link/*/rx", "ops/setpoint/*", "loop/*/sp", "wncsca/*"}
+    for carrier in scenario.carriers():
+        out[carrier] |= {"loop/*/u", "plant/*/sensor/*", "link/*/tx", "wncsca/*"}
+        out[carrier].add(keys.network_events(carrier))
+    agent = scenario.agent_node()
+    if agent is not None:
+        out[agent] |= {"net/*", "ops/*", "ops/setpoint/*", "loop/*/meas"}
+    for monitor in scenario.nodes_of(MonitorNodeConfig):
+        out[monitor] |= {"plant/**", "loop/**", "ops/**"}
+    out["historian"].add("**")
+    return {n: tuple(sorted(p)) for n, p in sorted(out.items())}

@@ -7,18 +7,25 @@ an outside client, and compares the run with the clean run of the same scenario.
 from __future__ import annotations
 
 import json
+import subprocess
 import threading
+import time
 from pathlib import Path
 
 import msgpack
 import pytest
 
 from bus_schemas import Tick, codec, keys
+from core.errors import ConfigError
 from kernel.bus import open_client
+from kernel.security import SECURITY_DIR, Credential, client_settings
 from runtime.history import messages_digest
-from tests.conftest import BENCHMARK
+from runtime.security import DASHBOARD, credentials_of
+from tests.conftest import BENCHMARK, wait_until
 from tests.e2e.test_runs import (
+    WNCS,
     assert_same_traces,
+    observer,
     start_run,
     traces,
     wait_for_virtual_time,
@@ -33,9 +40,9 @@ MEAS = keys.meas("level")  # likewise
 
 @pytest.fixture(scope="module")
 def clean_run(tmp_path_factory) -> tuple[Path, dict]:
-    """The benchmark run with nobody else on the bus."""
+    """The benchmark run with nobody else on the bus (its history is the same on every engine)."""
     out = tmp_path_factory.mktemp("clean")
-    return out, wncs_run(BENCHMARK, out)
+    return out, wncs_run(BENCHMARK, out, "--engine", "threads")
 
 
 def _envelope(run: str, src: str, seq: int, round_: int, body: dict) -> bytes:
@@ -51,7 +58,7 @@ def test_forged_data_with_a_wrong_run_source_or_round_is_dropped_counted_and_har
     thousands ahead. Every node drops them and counts them; the run's history and
     traces are the clean run's, bit for bit (a command of 1e6 on the outflow, or a level
     measurement of 5, would change both)."""
-    proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0")
+    proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0", "--insecure")
     run_id = info["run_id"]
     session = open_client(info["endpoint"])
     current = [0]
@@ -98,6 +105,99 @@ def test_forged_data_with_a_wrong_run_source_or_round_is_dropped_counted_and_har
     dropped = summary["messages"]["dropped_invalid"]
     assert dropped.get(ACTUATOR, 0) > 0 and dropped.get(MEAS, 0) > 0, dropped
     assert set(dropped) == {ACTUATOR, MEAS}, dropped
+    clean_out, clean = clean_run
+    assert_same_traces(traces(summary), traces(clean), atol=0.0)
+    assert messages_digest(tmp_path / "history.sqlite") == messages_digest(
+        clean_out / "history.sqlite"
+    )
+
+
+def test_without_credentials_or_with_another_nodes_nothing_gets_through_the_router(
+    tmp_path, clean_run
+):
+    """A secure run (the default; the threads engine: the launcher's router is the same for
+    both bus engines). A client without credentials cannot even open a session. With the
+    reactor's credentials (a node of the run, but not the owner of these keys) a client puts
+    an outflow command of 1e6 as the network would stamp it, the next tick, the level
+    controller's Done, a set-point request as ``wncs inject`` would send it, and declares the
+    level controller's and the clock's liveliness tokens (and drops them again, which would
+    read as those nodes leaving); with the dashboard's it puts on the actuator key too. The
+    router lets none of it through: no node even sees a message to drop, the run ends normally
+    and its history is the clean run's, bit for bit."""
+    proc = subprocess.Popen(
+        [*WNCS, "run", str(BENCHMARK), "--out", str(tmp_path), "--quiet"]
+        + ["--engine", "threads", "--realtime", "1.0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    run_file = tmp_path / "run.json"
+    wait_until(
+        lambda: run_file.exists() and bool(json.loads(run_file.read_text()).get("endpoint")),
+        timeout=60,
+        what="run.json naming the endpoint",
+    )
+    info = json.loads(run_file.read_text())
+    run_id = info["run_id"]
+    assert info["secure"]
+    security = tmp_path / SECURITY_DIR
+    modes = {p.name: p.stat().st_mode & 0o777 for p in security.iterdir()}
+    assert set(modes.values()) == {0o600} and (security.stat().st_mode & 0o777) == 0o700
+    watcher = observer(info, tmp_path)
+    try:
+        wait_for_virtual_time(watcher, info, proc, 1_000_000)
+        with pytest.raises(ConfigError):
+            open_client(info["endpoint"])  # no credentials
+        with pytest.raises(ConfigError):  # a made-up password for a real identity
+            open_client(
+                info["endpoint"],
+                settings=client_settings(Credential("network", "guessed")),
+            )
+        current = [0]
+
+        def on_tick(sample) -> None:
+            current[0] = codec.decode(sample.payload.to_bytes(), Tick).body.round
+
+        ticks = watcher.declare_subscriber(keys.full(run_id, keys.tick()), on_tick)
+        intruder = open_client(info["endpoint"], settings=credentials_of(security, "reactor"))
+        dashboard = open_client(info["endpoint"], settings=credentials_of(security, DASHBOARD))
+        for _ in range(20):
+            r = current[0]
+            move = {"value": 1e6, "t_computed": 0}
+            tick = {"round": r + 1, "t": 10**9, "expected": {}}
+            ctl = "level_controller"
+            done = {"round": r, "node": ctl, "published": {}}
+            request = {"setpoint": {"loop": "level", "value": 0.9}}
+            forged = [
+                (ACTUATOR, _envelope(run_id, "network", 10**9 + r, r, move)),
+                (keys.tick(), _envelope(run_id, "clock", 10**9 + r, r + 1, tick)),
+                (
+                    keys.done("level_controller"),
+                    _envelope(run_id, "level_controller", 10**9, r, done),
+                ),
+                (keys.inject(), _envelope(run_id, "inject", r, 0, request)),
+            ]
+            for rel, raw in forged:
+                intruder.put(keys.full(run_id, rel), raw)
+            dashboard.put(keys.full(run_id, ACTUATOR), forged[0][1])
+            tokens = [
+                intruder.liveliness().declare_token(keys.full(run_id, keys.alive(n)))
+                for n in ("level_controller", "clock")
+            ]
+            time.sleep(0.05)
+            for token in tokens:
+                token.undeclare()
+        intruder.close()
+        dashboard.close()
+        ticks.undeclare()
+        out, err = proc.communicate(timeout=300)
+    finally:
+        watcher.close()
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["messages"]["dropped_invalid"] == {}
     clean_out, clean = clean_run
     assert_same_traces(traces(summary), traces(clean), atol=0.0)
     assert messages_digest(tmp_path / "history.sqlite") == messages_digest(

@@ -13,8 +13,10 @@ import pytest
 from bus_schemas import Tick, codec, keys
 from core.errors import ConfigError
 from kernel.bus import open_client
+from kernel.security import SECURITY_DIR
 from runtime.inject import build_request, send
 from runtime.launcher import launch
+from runtime.security import DASHBOARD, INJECT, credentials_of
 from tests.conftest import SCENARIOS, wait_until, write_variant
 
 pytestmark = pytest.mark.slow
@@ -45,7 +47,9 @@ def test_mode_and_setpoint_injected_into_a_running_run(tmp_path):
 
     wait_until(announced, timeout=60, what="run.json with the router endpoint")
     info = json.loads((out / "run.json").read_text())
-    session = open_client(info["endpoint"])
+    security = out / SECURITY_DIR
+    session = open_client(info["endpoint"], settings=credentials_of(security, DASHBOARD))
+    creds = credentials_of(security, INJECT)
     now = [0]
     sub = session.declare_subscriber(
         keys.full(info["run_id"], keys.tick()),
@@ -57,10 +61,11 @@ def test_mode_and_setpoint_injected_into_a_running_run(tmp_path):
             info["endpoint"],
             info["run_id"],
             build_request("mode", ["steady_state"], run_dir=out, network=None),
+            settings=creds,
         )
         wait_until(lambda: now[0] >= 8_000_000, timeout=60, what="virtual time 8 pu")
         request = build_request("setpoint", ["level=0.72"], run_dir=out, network=None)
-        send(info["endpoint"], info["run_id"], request)
+        send(info["endpoint"], info["run_id"], request, settings=creds)
         runner.join(120)
     finally:
         sub.undeclare()

@@ -6,11 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import zenoh
 
 from core.time import to_ticks
 from runtime.direct import behaviour_of
 from runtime.engine import DirectEngine, Message
-from runtime.ownership import CLOCK, owners_of, publishers
+from runtime.ownership import CLOCK, owners_of, publishers, readers
 from runtime.scenario import load_scenario
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
@@ -51,3 +52,20 @@ def test_owners_of_a_small_scenario_by_hand():
     assert table["historian"] == ()
     for key, owners in table.items():
         assert all(not p.startswith("clock/") for p in owners), key
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_every_subscription_falls_inside_its_nodes_read_grant(path):
+    """What the router lets a node read (:func:`runtime.ownership.readers`) includes every key
+    expression its behaviour subscribes to, as zenoh's access control matches them (a rule
+    must include the subscription's whole key expression)."""
+    scenario = load_scenario(path)
+    table = readers(scenario)
+    for name in sorted(scenario.nodes):
+        for pattern in behaviour_of(scenario, name).patterns:
+            sub = zenoh.KeyExpr(f"w/r/{pattern}")
+            assert any(zenoh.KeyExpr(f"w/r/{g}").includes(sub) for g in table[name]), (
+                name,
+                pattern,
+            )

@@ -1,0 +1,128 @@
+"""A run's security from its scenario (issue 19): who may put, subscribe and show a token where.
+
+:func:`grants` derives each identity's :class:`~kernel.security.Grant` from the scenario: a node
+may publish only the keys it owns (:func:`runtime.ownership.publishers`) and its own
+``clock/done/<node>``, subscribe only to what its role reads (:func:`runtime.ownership.readers`)
+and the clock's tick and stop, declare a liveliness token only under its own name and watch
+only the clock's. The clock publishes ``clock/*`` and the requests it stamps, and listens to
+``clock/done/*`` and
+``ops/inject``. ``wncs inject`` may put exactly ``ops/inject`` (and learn that the clock listens
+there); ``dashboard`` may put exactly ``ops/inject`` too, and read the run (it shows it). The
+historian reads everything and publishes nothing. Every publisher may learn of every subscription
+in the run (``matches``): a zenoh 1.10 client's declared publisher sends nothing to a router
+that has not told it of a matching subscriber, and the historian's is ``wncs/<run>/**``.
+:func:`prepare` writes the credentials and the access control under ``<run dir>/security``
+(:mod:`kernel.security`).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import sys
+from pathlib import Path
+from typing import Any, TextIO
+
+from bus_schemas import keys
+from kernel.security import (
+    SECURITY_DIR,
+    Grant,
+    client_settings,
+    credential_path,
+    read_credential,
+    write_security,
+)
+from runtime.ownership import CLOCK, publishers, readers
+from runtime.scenario import Scenario
+
+__all__ = [
+    "SECURITY_ENV",
+    "INJECT",
+    "DASHBOARD",
+    "HISTORIAN",
+    "grants",
+    "prepare",
+    "credentials_of",
+    "warn_insecure",
+    "is_loopback",
+]
+
+SECURITY_ENV = "WNCS_SECURITY"
+"""The environment variable naming a run's security directory: ``wncs node NAME`` then
+authenticates with ``NAME.json`` from it (the launcher sets it for its node processes)."""
+
+INJECT = "inject"
+DASHBOARD = "dashboard"
+HISTORIAN = "historian"
+
+
+def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
+    """Identity -> what it may do on the bus in run ``run_id`` of ``scenario``."""
+
+    def full(*rels: str) -> tuple[str, ...]:
+        return tuple(sorted({keys.full(run_id, r) for r in rels}))
+
+    owned, reads = publishers(scenario), readers(scenario)
+    out: dict[str, Grant] = {}
+    for name in scenario.participants():
+        out[name] = Grant(
+            puts=full(*owned[name], keys.done(name)),
+            # every tick, and (sparse rounds) the ticks addressed to it: clock/tick/<node>
+            subscribes=full(*reads[name], keys.tick(), f"{keys.tick()}/{name}", keys.stop()),
+            tokens=full(keys.alive(name)),
+            watches=full(keys.alive(CLOCK)),
+            matches=full("**"),
+        )
+    out[CLOCK] = Grant(
+        puts=full(*owned[CLOCK], keys.tick(), f"{keys.tick()}/*", keys.stop()),
+        subscribes=full(keys.done_all(), keys.inject()),
+        tokens=full(keys.alive(CLOCK)),
+        watches=full(keys.alive_all()),
+        matches=full("**"),
+    )
+    out[INJECT] = Grant(puts=full(keys.inject()), matches=full(keys.inject()))
+    out[DASHBOARD] = Grant(
+        puts=full(keys.inject()),
+        matches=full(keys.inject()),
+        subscribes=full("**"),
+        watches=full(keys.alive_all()),
+    )
+    return out
+
+
+def prepare(out: Path, scenario: Scenario, run_id: str) -> Path:
+    """Write run ``run_id``'s credentials and access control under ``out/security``; return
+    that directory."""
+    directory = out / SECURITY_DIR
+    write_security(directory, grants(scenario, run_id), everything=keys.full(run_id, "**"))
+    return directory
+
+
+def credentials_of(directory: Path, name: str) -> dict[str, Any]:
+    """The session settings of identity ``name`` from security directory ``directory``."""
+    return client_settings(read_credential(credential_path(directory, name)))
+
+
+def is_loopback(endpoint: str) -> bool:
+    """Whether a zenoh endpoint (``tcp/127.0.0.1:7447``) binds the loopback interface only."""
+    address = endpoint.partition("/")[2].rpartition(":")[0].strip("[]")
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        return False  # a host name or an interface: not provably loopback
+
+
+def warn_insecure(listen: str, *, secure: bool, stream: TextIO | None = None) -> None:
+    """Say on ``stream`` (standard error) what an insecure run or a wide listener exposes."""
+    stream = stream or sys.stderr
+    if not secure:
+        stream.write(
+            "wncs: WARNING: --insecure: no authentication and no access control; anyone who "
+            "reaches the router can read the run and publish on any of its keys\n"
+        )
+        if not is_loopback(listen):
+            stream.write(
+                f"wncs: WARNING: listening on {listen}, beyond the loopback interface, "
+                "with security off\n"
+            )

@@ -1,0 +1,86 @@
+"""One run over two chained standalone routers (issue 19, item 3): ``wncs router`` twice on
+loopback ports, the second joined to the first, every node a ``wncs node`` process connected to
+one or the other with its own credentials. Its history is the single-router run's, bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from core.record import summarize
+from kernel.security import SECURITY_DIR
+from runtime.history import load_record, messages_digest
+from runtime.scenario import load_scenario
+from runtime.security import SECURITY_ENV
+from tests.conftest import BENCHMARK, wait_until
+from tests.e2e.test_runs import WNCS, assert_same_traces, traces, wncs_run
+
+pytestmark = pytest.mark.slow
+
+
+def _router(out: Path, log: Path, *extra: str) -> subprocess.Popen:
+    cmd = [*WNCS, "router", "--scenario", str(BENCHMARK), "--out", str(out)]
+    cmd += ["--listen", "tcp/127.0.0.1:0", *extra]
+    return subprocess.Popen(cmd, stdout=log.open("w"), stderr=subprocess.STDOUT)
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+def test_a_run_over_two_chained_routers_equals_the_single_router_run(tmp_path):
+    clean = wncs_run(BENCHMARK, tmp_path / "single", "--engine", "threads")
+    out = tmp_path / "chained"
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    run_file = out / "run.json"
+
+    def routers() -> list[dict]:
+        for p in procs:
+            assert p.poll() is None, (logs / "router_a.log").read_text()
+        return json.loads(run_file.read_text()).get("routers", []) if run_file.exists() else []
+
+    procs: list[subprocess.Popen] = []
+    nodes: dict[str, subprocess.Popen] = {}
+    try:
+        procs.append(_router(out, logs / "router_a.log"))
+        wait_until(lambda: len(routers()) == 1, timeout=60, what="the first router")
+        first = routers()[0]["endpoint"]
+        procs.append(_router(out, logs / "router_b.log", "--connect", first))
+        wait_until(lambda: len(routers()) == 2, timeout=60, what="the second router")
+        info = json.loads(run_file.read_text())
+        assert info["secure"]
+        endpoints = [r["endpoint"] for r in info["routers"]]
+        assert len(set(endpoints)) == 2
+        env = {**os.environ, SECURITY_ENV: str(out / SECURITY_DIR)}
+        names = ["clock", *load_scenario(BENCHMARK).participants()]
+        for i, name in enumerate(names):  # alternately on either router, the clock on the first
+            cmd = [*WNCS, "node", str(BENCHMARK), name, "--connect", endpoints[i % 2]]
+            cmd += ["--run-id", info["run_id"]]
+            if name == "historian":
+                cmd += ["--out", str(out), "--engine", "threads"]
+            log = (logs / f"{name}.log").open("w")
+            nodes[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+        assert nodes["clock"].wait(timeout=300) == 0, (logs / "clock.log").read_text()[-2000:]
+        for name, p in nodes.items():
+            assert p.wait(timeout=60) == 0, (name, (logs / f"{name}.log").read_text()[-2000:])
+    finally:
+        _stop([*nodes.values(), *procs])
+    history = out / "history.sqlite"
+    assert messages_digest(history) == messages_digest(tmp_path / "single" / "history.sqlite")
+    rec = load_record(history, load_scenario(BENCHMARK), engine="threads")
+    assert_same_traces(traces(summarize(rec)), traces(clean), atol=0.0)
