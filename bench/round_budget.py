@@ -12,7 +12,9 @@ a round alone, in one thread, and multiplies by how often a run does it:
   (``clock/tick/<node>``, which the historian's ``**`` sees and drops), plus one to every node
   every ``kernel.clock.SYNC_ROUNDS`` rounds;
 * unit costs, median of many: encoding a message (``model_dump`` + msgpack), decoding and
-  validating one (envelope + body), a zenoh ``put`` (the call alone), a queue hop between two
+  validating one (envelope + body), a zenoh ``put`` (the call alone; batched, as the nodes and
+  the clock publish, and ``express`` as they did before: an immediate write per message, 60
+  times dearer for no shorter round), a queue hop between two
   threads (the callback's ``put`` to the node thread's ``get``: one wake-up), an SQLite insert
   and a commit (the historian's), and a Zenoh round trip (``bench/engines.py``).
 
@@ -94,13 +96,16 @@ def unit_costs() -> dict[str, float]:
     endpoint = next(loc for loc in locators if loc.startswith("tcp/"))
     a, b = open_client(endpoint), open_client(endpoint)
     sub = b.declare_subscriber("bench/x", lambda s: None)
-    pub = a.declare_publisher("bench/x", express=True)
+    pub = a.declare_publisher("bench/x")  # batched, as the nodes and the clock publish
+    express = a.declare_publisher("bench/x", express=True)  # what they did before
     time.sleep(0.5)
     try:
         out["zenoh put"] = median_us(lambda: pub.put(raw))
+        out["(express put)"] = median_us(lambda: express.put(raw))
     finally:
         sub.undeclare()
         pub.undeclare()
+        express.undeclare()
         a.close()
         b.close()
         router.close()

@@ -197,9 +197,7 @@ class BusNode:
             )
 
     def _round_(self, tick: Tick) -> None:
-        if tick.round <= self._last_tick or (
-            self.every_tick and tick.round != self._last_tick + 1
-        ):
+        if tick.round <= self._last_tick or (self.every_tick and tick.round != self._last_tick + 1):
             raise ProtocolError(f"{self.name}: tick {tick.round} after round {self._last_tick}")
         self._last_tick = tick.round
         if tick.participants is not None and self.name not in tick.participants:
@@ -357,7 +355,7 @@ class BusNode:
                 encoding=zenoh.Encoding(codec.ENCODING),
                 congestion_control=zenoh.CongestionControl.BLOCK,
                 reliability=zenoh.Reliability.RELIABLE,
-                express=True,
+                express=False,  # batched: 0.5 us a put, not 33 (bench/round_budget.py)
             )
             self._publishers[rel] = pub
         payload = codec.encode(
