@@ -107,6 +107,25 @@ def test_demo_run_watched_and_acted_on_in_a_browser(tmp_path):
             )
             page.wait_for_timeout(500)
             page.screenshot(path=str(out / "dashboard.png"), full_page=True)
+            # bad input on the socket: an error on the page, nothing sent
+            page.evaluate("() => window.wncs.send('{not json')")
+            page.wait_for_function(
+                "() => [...document.querySelectorAll('#messages li.error')]"
+                ".some((li) => li.textContent.includes('not JSON'))",
+                timeout=20_000,
+            )
+            # the run ends; the page turns into a replay with a time slider
+            page.wait_for_function("() => window.wncs.finished !== null", timeout=120_000)
+            everything = page.evaluate("() => window.wncs.timeline().length")
+            page.eval_on_selector(
+                "#slider", "(e) => { e.value = 10; e.dispatchEvent(new Event('input')); }"
+            )
+            shown = page.evaluate("() => window.wncs.timeline().map((r) => r.t)")
+            assert page.evaluate("() => window.wncs.cursor") == 10
+            assert shown and max(shown) <= 10 and len(shown) < everything
+            page.select_option("#speed", "10")
+            page.click("#btn-play")
+            page.wait_for_function("() => window.wncs.cursor > 12", timeout=20_000)
             assert not errors, errors
             browser.close()
     finally:
