@@ -31,6 +31,24 @@ __all__ = ["PlantBehaviour", "PlantSpec"]
 
 
 @dataclass(frozen=True)
+class _Applied:
+    """A command applied since the plant last published: what undoing it restores."""
+
+    key: str
+    index: int
+    value: float
+    before: float
+    t_state: int
+    x: np.ndarray
+    next_record: int
+    n_records: int
+
+
+class _Diverged(Exception):
+    """The state left the finite numbers after a command not yet published on."""
+
+
+@dataclass(frozen=True)
 class PlantSpec:
     """What a plant node needs of its scenario, computed once (:func:`runtime.specs.plant_spec`).
 
@@ -71,6 +89,9 @@ class PlantBehaviour(Behaviour):
         self.x = np.array(spec.x0, dtype=float)
         self.u = np.array(spec.u0, dtype=float)
         self.t_state = 0
+        self._applied: list[_Applied] = []  # since the plant last published
+        self._in_force: dict[int, _Applied] = {}  # input index -> the command that set it
+        self._frozen = False
         self.max_step = spec.max_step
         self._step = integrator_of(self.model)
         self.monitor = spec.monitor
@@ -93,20 +114,62 @@ class PlantBehaviour(Behaviour):
         self.at(self.end, self._final)
 
     def _integrate_to(self, t: int) -> None:
-        """Integrate to ``t``, stopping at (and recording) every monitoring instant on the way."""
-        while self._next_record <= t:
-            self._step_to(self._next_record)
-            self._records_t.append(self._next_record)
-            self._records_x.append(self.x.tolist())
-            self._next_record += self.monitor
-        self._step_to(t)
+        """Integrate to ``t``, stopping at (and recording) every monitoring instant on the way.
+
+        A command the model cannot bear (finite, yet it drives the state to NaN or infinity:
+        1e300, or a large negative outflow) is refused when that happens before the plant
+        publishes again: the state goes back to the instant it was applied, the input it
+        replaced is held, the command is dropped and counted on its key, and the integration
+        runs again. The plant node does not die of it; the run goes on as if it never came."""
+        try:
+            while self._next_record <= t:
+                self._step_to(self._next_record)
+                self._records_t.append(self._next_record)
+                self._records_x.append(self.x.tolist())
+                self._next_record += self.monitor
+            self._step_to(t)
+        except _Diverged:
+            self._undo_commands()
+            self._integrate_to(t)
 
     def _step_to(self, t: int) -> None:
         if t > self.t_state:
-            self.x = self._step(
-                to_units(self.t_state), self.x, to_units(t), self.u, max_step=self.max_step
-            )
+            t0, t1 = to_units(self.t_state), to_units(t)
+            x = self._step(t0, self.x, t1, self.u, max_step=self.max_step)
+            if not np.isfinite(x).all():
+                if self._applied:
+                    raise _Diverged
+                x = self._bear(t0, t1)
+            self.x = x
             self.t_state = t
+
+    def _bear(self, t0: float, t1: float) -> np.ndarray:
+        """The state at ``t1`` when the commands in force drive it out of the finite numbers
+        after the plant has published on them: refuse them, latest first, until the segment
+        stays finite; if none does, the state holds (the node lives on, said once)."""
+        for index, applied in sorted(self._in_force.items(), key=lambda kv: -kv[1].t_state):
+            self.u[index] = applied.before
+            del self._in_force[index]
+            self.reject(applied.key, f"command {applied.value!r} makes the state non-finite")
+            x = self._step(t0, self.x, t1, self.u, max_step=self.max_step)
+            if np.isfinite(x).all():
+                return np.asarray(x)
+        if not self._frozen:
+            self._frozen = True
+            self.log.error("the state cannot be integrated past t = %s; it holds", t0)
+        return self.x
+
+    def _undo_commands(self) -> None:
+        """Refuse every command applied since the plant last published (see _integrate_to)."""
+        first = self._applied[0]
+        for a in reversed(self._applied):
+            self.u[a.index] = a.before
+            if self._in_force.get(a.index) is a:
+                del self._in_force[a.index]
+            self.reject(a.key, f"command {a.value!r} drives the state out of the finite numbers")
+        self.x, self.t_state, self._next_record = first.x, first.t_state, first.next_record
+        del self._records_t[first.n_records :], self._records_x[first.n_records :]
+        self._applied.clear()
 
     def _send_records(self) -> None:
         if not self._records_t:
@@ -121,6 +184,7 @@ class PlantBehaviour(Behaviour):
     def _final(self) -> None:
         self._integrate_to(self.now)
         self._send_records()
+        self._applied.clear()
 
     def _sampler(self, signal: str, generation: int) -> Any:
         """A sample of ``signal`` now, and the next one a period later (unless a new period has
@@ -138,6 +202,7 @@ class PlantBehaviour(Behaviour):
                 y += sigma * float(rng.standard_normal())
             self.publish(keys.sensor(self.name, signal), Sample(value=y, t_sampled=self.now))
             self._send_records()
+            self._applied.clear()  # published: what came before it stands
             self._last_sample[signal] = self.now
             nxt = self.now + self.periods[signal]
             if nxt <= self.end:
@@ -168,6 +233,20 @@ class PlantBehaviour(Behaviour):
 
         def apply(env: RawEnvelope, move: Move) -> None:
             self._integrate_to(self.now)
+            before = float(self.u[index])
+            self._applied.append(
+                _Applied(
+                    self.current_key,
+                    index,
+                    move.value,
+                    before,
+                    self.t_state,
+                    self.x.copy(),
+                    self._next_record,
+                    len(self._records_t),
+                )
+            )
+            self._in_force[index] = self._applied[-1]
             self.u[index] = move.value
 
         return apply
