@@ -32,12 +32,17 @@ vector, every step phase) are the items of one batch. Every item has its own sor
 stops (the union above, different per item since its periods and phases differ); the batch
 advances all items one stop per iteration (an item that has run out of stops repeats its last,
 a segment of zero span). Everything that does not depend on the state is computed for all
-``(stop, item)`` pairs before the loop: segment steps, the sample each execution uses, the set
-point and feedforward in force at each execution. The loop does, per stop, the RK4 steps of the
-segment on arrays of all items, and the PI law on the items that execute there. The cost is the
-number of stops (about 1000 for an 8 pu test on a 0.01 pu monitoring grid, whatever the number
-of items) times the numpy calls per stop (two RK4 steps of about 100 calls each): 0.07-0.1 s for
-the 8-20 trials of one check, about 0.2 s for 200 (``bench/wncsca_scale.py``).
+``(stop, item)`` pairs before the loop: segment steps (as states x items arrays), and each
+execution's sample, set point, feedforward, law and time since the item's previous execution.
+The loop does, per stop, the PI law on every execution there (all loops at once: an item's
+loops have their own integral and actuator), then the RK4 steps of the segment on one
+states x items array; the inputs' terms of the plant's right-hand side are computed once per
+segment when the plant offers them (``rhs_batch_inputs``/``rhs_batch_held``: the same
+operations, only not repeated). The cost is the number of stops (about 900-1000 for an 8 pu
+test on a 0.01 pu monitoring grid, whatever the number of items) times the numpy calls per stop
+(two RK4 steps of about 70 calls each for the JCSTR, the PI law's 25-30): about 0.055 s for the
+8-24 trials of a JCSTR check, 0.026 s for 4 tank trials, 0.1 s for 256 JCSTR trials
+(``bench/wncsca_scale.py``; 0.07-0.1 s for 8-20 before issue 20's tuning).
 
 A plant model takes part only if it offers ``batch_params``, ``rhs_batch`` and
 ``outputs_batch`` (:class:`plants.jcstr.JCSTR`, :class:`plants.tank.Tank`), its loops are PI loops
@@ -111,6 +116,7 @@ class _Executions:
     src: NDArray[np.int64]  # the stop of the sample it uses
     values: NDArray[np.float64]  # rows: set point, feedforward, Kp, Ki, u_min, u_max, dt
     started: NDArray[np.bool_]  # whether the item executed before (else no integration)
+    all_started: list[bool]  # per stop: whether every execution there has a previous one
     forward: NDArray[np.bool_] | bool | None  # forward integral: per execution, all, none
 
 
@@ -186,6 +192,7 @@ def _executions(
         forward = None
     outs = set(first.out_idx)
     bounds = np.concatenate([[0], np.cumsum(np.bincount(stop, minlength=L))]).tolist()
+    fresh = np.bincount(stop, weights=~started, minlength=L)  # first executions per stop
     return _Executions(
         bounds=bounds,
         item=item,
@@ -195,6 +202,7 @@ def _executions(
         src=src,
         values=np.ascontiguousarray(values.T),
         started=started,
+        all_started=(fresh == 0).tolist(),
         forward=forward,
     )
 
@@ -445,12 +453,17 @@ class BatchTrials:
                         err_i = e_prev[st]
                     else:
                         err_i = np.where(ex.forward[a:b], e_prev[st], e)
-                    incr = np.where(ex.started[a:b], ki * err_i * dt, 0.0)
+                    incr = ki * err_i * dt
+                    if not ex.all_started[j]:
+                        incr = np.where(ex.started[a:b], incr, 0.0)
                     base = ub + kp * e
                     i_now = integral[st]
                     v = base + i_now + incr
-                    wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
-                    now = i_now + np.where(wind, 0.0, incr)
+                    if np.fmin.reduce(v - lo) >= 0.0 and np.fmax.reduce(v - hi) <= 0.0:
+                        now = i_now + incr  # nothing saturates: no anti-windup (NaN: below)
+                    else:
+                        wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
+                        now = i_now + np.where(wind, 0.0, incr)
                     integral[st] = now
                     U_flat[ex.act[a:b]] = np.minimum(np.maximum(base + now, lo), hi)
                     e_prev[st] = e
