@@ -117,7 +117,8 @@ class _Executions:
     values: NDArray[np.float64]  # rows: set point, feedforward, Kp, Ki, u_min, u_max, dt
     started: NDArray[np.bool_]  # whether the item executed before (else no integration)
     all_started: list[bool]  # per stop: whether every execution there has a previous one
-    forward: NDArray[np.bool_] | bool | None  # forward integral: per execution, all, none
+    forward: NDArray[np.bool_]  # forward integral, per execution
+    integral_form: str  # "forward" (every execution), "backward" (every one) or "mixed"
 
 
 def _executions(
@@ -185,11 +186,7 @@ def _executions(
         started[order],
         fwd[order],
     )
-    forward: NDArray[np.bool_] | bool | None = fwd
-    if fwd.all():
-        forward = True
-    elif not fwd.any():
-        forward = None
+    form = "forward" if fwd.all() else ("backward" if not fwd.any() else "mixed")
     outs = set(first.out_idx)
     bounds = np.concatenate([[0], np.cumsum(np.bincount(stop, minlength=L))]).tolist()
     fresh = np.bincount(stop, weights=~started, minlength=L)  # first executions per stop
@@ -203,7 +200,8 @@ def _executions(
         values=np.ascontiguousarray(values.T),
         started=started,
         all_started=(fresh == 0).tolist(),
-        forward=forward,
+        forward=fwd,
+        integral_form=form,
     )
 
 
@@ -439,7 +437,7 @@ class BatchTrials:
                 XS[j] = X
                 a, b = ex.bounds[j], ex.bounds[j + 1]
                 if a != b:  # the executions at this stop, every loop's at once
-                    idx, st = ex.item[a:b], ex.state[a:b]
+                    idx, pi_at = ex.item[a:b], ex.state[a:b]
                     r, ub, kp, ki, lo, hi, dt = ex.values[:, a:b]
                     y_all = outputs(XS[ex.src[a:b], :, idx].T)  # the samples used
                     if isinstance(ex.out, int):
@@ -447,26 +445,26 @@ class BatchTrials:
                     else:
                         y = np.array(y_all)[ex.out[a:b], np.arange(b - a)]
                     e = r - y
-                    if ex.forward is None:
+                    if ex.integral_form == "backward":
                         err_i = e
-                    elif ex.forward is True:
-                        err_i = e_prev[st]
+                    elif ex.integral_form == "forward":
+                        err_i = e_prev[pi_at]
                     else:
-                        err_i = np.where(ex.forward[a:b], e_prev[st], e)
+                        err_i = np.where(ex.forward[a:b], e_prev[pi_at], e)
                     incr = ki * err_i * dt
                     if not ex.all_started[j]:
                         incr = np.where(ex.started[a:b], incr, 0.0)
                     base = ub + kp * e
-                    i_now = integral[st]
+                    i_now = integral[pi_at]
                     v = base + i_now + incr
                     if np.fmin.reduce(v - lo) >= 0.0 and np.fmax.reduce(v - hi) <= 0.0:
                         now = i_now + incr  # nothing saturates: no anti-windup (NaN: below)
                     else:
                         wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
                         now = i_now + np.where(wind, 0.0, incr)
-                    integral[st] = now
+                    integral[pi_at] = now
                     U_flat[ex.act[a:b]] = np.minimum(np.maximum(base + now, lo), hi)
-                    e_prev[st] = e
+                    e_prev[pi_at] = e
                 if j == L - 1:
                     break
                 if not n_here[j]:
