@@ -132,6 +132,12 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     return conf
 
 
+_NO_SCOUTING_WAIT = "scouting/delay:0"
+"""zenoh's open waits ``scouting/delay`` (500 ms) for other nodes to answer its scouting; with
+multicast scouting off and no router to join, none can, so a router that joins nothing does not
+wait (it opens in milliseconds: half a second off every bus run's start-up)."""
+
+
 def open_router(
     listen: str = DEFAULT_LISTEN,
     *,
@@ -149,6 +155,7 @@ def open_router(
         connect=connect,
         settings=settings or {},
         config_file=config_file,
+        overrides=() if connect else (_NO_SCOUTING_WAIT,),
     )
     try:
         session = zenoh.open(zenoh_config(cfg))
