@@ -66,12 +66,18 @@ def _page(url: str, seen: dict[str, int]) -> None:
                 return
 
 
-def run_once(out: Path, dashboard: bool) -> tuple[float, dict[str, int]]:
+def _walls(out: Path) -> tuple[float, float]:
+    """The run's wall time and its run phase (first tick to stop), from its summary."""
+    summary = json.loads((out / "summary.json").read_text())
+    return summary["wall_s"], summary["phases_s"]["run"]
+
+
+def run_once(out: Path, dashboard: bool) -> tuple[tuple[float, float], dict[str, int]]:
     cmd = [WNCS, "run", str(DEMO), "--out", str(out), "--force", "--quiet"]
     seen: dict[str, int] = {}
     if not dashboard:
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-        return json.loads((out / "summary.json").read_text())["wall_s"], seen
+        return _walls(out), seen
     port = _free_port()
     log = out.with_suffix(".log")
     proc = subprocess.Popen([*cmd, "--dashboard", str(port)], stdout=log.open("w"),
@@ -83,24 +89,27 @@ def run_once(out: Path, dashboard: bool) -> tuple[float, dict[str, int]]:
     page.join(60)
     proc.send_signal(signal.SIGINT)
     proc.wait(60)
-    return json.loads((out / "summary.json").read_text())["wall_s"], seen
+    return _walls(out), seen
 
 
 def overhead(repeat: int) -> None:
-    without: list[float] = []
-    with_: list[float] = []
+    without: list[tuple[float, float]] = []
+    with_: list[tuple[float, float]] = []
     seen: dict[str, int] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(repeat):
             without.append(run_once(Path(tmp) / "plain", False)[0])
-            wall, seen = run_once(Path(tmp) / "watched", True)
-            with_.append(wall)
-    a, b = statistics.median(without), statistics.median(with_)
-    print(f"demo run, processes engine, median of {repeat}:")
-    print(f"  without dashboard        {a:7.2f} s   ({', '.join(f'{w:.2f}' for w in without)})")
-    print(f"  with dashboard and page  {b:7.2f} s   ({', '.join(f'{w:.2f}' for w in with_)})")
-    print(f"  ratio {b / a:.3f} (target <= 1.10); the page got {seen.get('messages', 0)} "
-          f"messages, {seen.get('records', 0)} records")
+            walls, seen = run_once(Path(tmp) / "watched", True)
+            with_.append(walls)
+    print(f"demo run, processes engine, median of {repeat} (wall s / run phase s):")
+    for name, runs in (("without dashboard", without), ("with dashboard and page", with_)):
+        listed = ", ".join(f"{w:.2f}/{r:.2f}" for w, r in runs)
+        print(f"  {name:<24} {statistics.median(w for w, _ in runs):7.2f} / "
+              f"{statistics.median(r for _, r in runs):5.2f}   ({listed})")
+    wall = statistics.median(w for w, _ in with_) / statistics.median(w for w, _ in without)
+    run = statistics.median(r for _, r in with_) / statistics.median(r for _, r in without)
+    print(f"  ratio with/without: wall {wall:.3f}, run phase {run:.3f} (target <= 1.10); the "
+          f"page got {seen.get('messages', 0)} messages, {seen.get('records', 0)} records")
 
 
 def throughput(samples: int) -> None:
