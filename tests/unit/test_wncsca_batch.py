@@ -141,3 +141,52 @@ def test_five_loops_fast_equals_paper_within_5_percent():
     assert plain.overshoot_pct == fast.overshoot_pct
     fresh = loop_model(scenario).evaluate(fast.periods, delays)
     assert fresh.overshoot_pct == fast.overshoot_pct
+
+
+def test_inputs_terms_held_over_a_segment_equal_the_full_rhs():
+    """``rhs_batch_inputs`` with a state and a span, then ``rhs_batch_held`` at any state the
+    segment can reach (the level moved by up to the span times its rate), equals ``rhs_batch``:
+    for well-filled levels (where the JCSTR skips its empty-tank clamp and level floor) and for
+    levels near empty (where it keeps them), so a wrong bound shows."""
+    rng = np.random.default_rng(21)
+    scenario, _ = jcstr_loops(3)
+    for plant in ("reactor0", "tank1"):
+        model = scenario.nodes[plant].build()
+        kind = type(model)
+        for low, levels in ((False, (0.2, 1.5)), (True, (-0.002, 0.02))):
+            n = 200
+            x = [rng.uniform(*levels, n) for _ in model.state_names]
+            if plant == "reactor0":
+                x[1], x[2] = rng.uniform(40, 60, n), rng.uniform(100, 200, n)
+            u = [rng.uniform(-0.5, 12.0, n) for _ in model.input_names]
+            p = [np.full(n, v) for v in model.batch_params()]
+            span = np.full(n, 0.01)
+            held = kind.rhs_batch_inputs(p, u, x, span)
+            if plant == "reactor0":
+                assert bool(held[2]) == low
+            rate = np.asarray(kind.rhs_batch(p, x, u)[0])
+            for c in (0.0, 0.0025, 0.005, 0.01):
+                xs = [x[0] + c * rate, *x[1:]]
+                got = np.array(kind.rhs_batch_held(p, xs, held))
+                want = np.array(kind.rhs_batch(p, xs, u))
+                np.testing.assert_array_equal(got, want)
+
+
+def test_rows_ahead_ride_along_and_are_memoised():
+    """Rows passed ``ahead`` are simulated only with a plant simulated anyway, in the same
+    batch; asked later, they cost no batch and give a fresh engine trial's overshoots."""
+    scenario, delays = jcstr_loops(3)
+    model = loop_model(scenario)
+    batch = BatchTrials(model)
+    row = np.array([ROWS["near the answer"]])
+    ahead = row.copy()
+    ahead[0, 2] += 0.001  # temperature0: the reactor's plant
+    batch.overshoots(row, delays, ahead)
+    assert batch.batches == 2  # the reactor and the tank, as without ``ahead``
+    assert batch.items == (2 + 1) * 4  # reactor: the row and the row ahead; tank: the row
+    got = batch.overshoots(ahead, delays)
+    assert batch.batches == 2 and batch.items == 12  # memoised: nothing simulated
+    ev = model.evaluate(dict(zip(model.loops, ahead[0], strict=True)), delays)
+    assert got[0].tolist() == [ev.overshoot_pct[n] for n in model.loops]
+    batch.overshoots(row, delays, ahead + 0.002)  # every plant memoised: no batch at all
+    assert batch.batches == 2 and batch.items == 12
