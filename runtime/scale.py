@@ -241,7 +241,6 @@ def scale_scenario(
         "time_unit": "s" if plant == "tank" else "pu",
         "end_time": end,
         "seed": seed,
-        "clock": {"round_timeout_s": 30.0, "startup_timeout_s": 300.0},
         "nodes": nodes,
         "loops": loops,
         "setpoints": sorted(
