@@ -55,8 +55,8 @@ _FORK_TIMEOUT_S = 120.0
 _STARTING_AT_ONCE = 4
 """Threads engine: nodes that open their session and build their behaviour at the same time.
 Two hundred threads doing both at once (100 loops) starve the zenoh runtime's few threads of
-the interpreter lock they need for callbacks, and a quarter of the sessions time out while
-connecting; a few at a time, each node is up in milliseconds."""
+the interpreter lock they need for callbacks, and an eighth to a quarter of the sessions time
+out while connecting; a few at a time, each node is up in milliseconds."""
 
 
 @dataclass
