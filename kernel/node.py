@@ -170,11 +170,7 @@ class BusNode:
                 raise ProtocolError(f"{self.name}: the clock left the run (round {self.round})")
             rel = keys.relative(self.run_id, key)
             try:
-                env = codec.decode_envelope(payload)
-                if env.src != "clock":
-                    raise SchemaError(f"control message from {env.src!r}, expected 'clock'")
-                if env.run != self.run_id:
-                    raise SchemaError(f"control message of run {env.run!r} on this run's key")
+                env = self._control(payload)
                 if rel == keys.stop():
                     stop = codec.decode_body(env, Stop)
                     self.on_stop(stop)
@@ -188,6 +184,26 @@ class BusNode:
                 self._round_(tick)
             except _StopRequested as stop:
                 self._backlog.insert(0, ("control", stop.key, stop.payload))
+
+    def _control(self, payload: bytes) -> RawEnvelope:
+        """The envelope of a control message, if it is the clock's of this run (else
+        ``SchemaError``)."""
+        env = codec.decode_envelope(payload)
+        if env.src != "clock":
+            raise SchemaError(f"control message from {env.src!r}, expected 'clock'")
+        if env.run != self.run_id:
+            raise SchemaError(f"control message of run {env.run!r} on this run's key")
+        return env
+
+    def _is_stop(self, key: str, payload: bytes) -> bool:
+        """Whether a message on ``clock/stop`` is the clock's stop; anything else is dropped and
+        counted (garbage there must not make a node leave its round without a ``Done``)."""
+        try:
+            codec.decode_body(self._control(payload), Stop)
+        except SchemaError as err:
+            self._reject(keys.relative(self.run_id, key), str(err))
+            return False
+        return True
 
     def _check_connected(self) -> None:
         """Idle between ticks (real time leaves long gaps): check the router is still there."""
@@ -316,7 +332,8 @@ class BusNode:
             elif kind == "clock_gone":
                 raise ProtocolError(f"{self.name}: the clock left during round {tick.round}")
             elif key.endswith("/" + keys.stop()):
-                raise _StopRequested(key, payload)  # a fault elsewhere ended the run
+                if self._is_stop(key, payload):
+                    raise _StopRequested(key, payload)  # a fault elsewhere ended the run
             else:
                 self._backlog.append((kind, key, payload))
         inbox = self._pending.pop(prev, [])
