@@ -255,8 +255,13 @@ def create_app(dashboard: Dashboard) -> Starlette:
 
 
 async def _forward(ws: WebSocket, queue: asyncio.Queue[str]) -> None:
+    """Hand the page its batches until it goes away (a page that left ends only this task)."""
     while True:
-        await ws.send_text(await queue.get())
+        text = await queue.get()
+        try:
+            await ws.send_text(text)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            return
 
 
 async def _answer(ws: WebSocket, dashboard: Dashboard) -> None:
