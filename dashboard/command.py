@@ -16,7 +16,7 @@ from pathlib import Path
 
 from dashboard.server import Dashboard, serve
 
-__all__ = ["DEFAULT_PORT", "add_arguments", "run", "spawn"]
+__all__ = ["DEFAULT_PORT", "add_arguments", "port_number", "run", "spawn"]
 
 DEFAULT_PORT = 8765
 
@@ -24,7 +24,10 @@ DEFAULT_PORT = 8765
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dir", metavar="RUN_DIR", help="run directory (live or finished)")
     parser.add_argument(
-        "--port", type=_port, default=DEFAULT_PORT, help=f"port (default {DEFAULT_PORT}; 0: any)"
+        "--port",
+        type=port_number,
+        default=DEFAULT_PORT,
+        help=f"port (default {DEFAULT_PORT}; 0: any)",
     )
     parser.add_argument(
         "--host", default="127.0.0.1", help="interface to serve on (default 127.0.0.1)"
@@ -34,7 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _port(text: str) -> int:
+def port_number(text: str) -> int:
+    """A TCP port (0..65535; 0: any free one), for argparse."""
     try:
         port = int(text)
     except ValueError:

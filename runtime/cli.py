@@ -237,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--dashboard",
         nargs="?",
-        type=int,
+        type=dashboard_command.port_number,
         const=dashboard_command.DEFAULT_PORT,
         default=None,
         metavar="PORT",
