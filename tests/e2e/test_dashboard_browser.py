@@ -16,7 +16,6 @@ import socket
 import sqlite3
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import msgpack
@@ -130,13 +129,16 @@ def test_demo_run_watched_and_acted_on_in_a_browser(tmp_path):
             browser.close()
     finally:
         # the run ends on its own; its dashboard then shows the finished run until Ctrl-C
-        deadline = time.monotonic() + 120
-        while run.poll() is None and "shows the finished run" not in log.read_text():
-            if time.monotonic() > deadline:
-                break
-            time.sleep(0.2)
-        run.send_signal(signal.SIGINT)
-        run.wait(timeout=60)
+        try:
+            wait_until(
+                lambda: run.poll() is not None or "shows the finished run" in log.read_text(),
+                timeout=120,
+                what="the run's end (its dashboard showing the finished run)",
+                interval=0.2,
+            )
+        finally:
+            run.send_signal(signal.SIGINT)
+            run.wait(timeout=60)
     assert run.returncode == 0, log.read_text()
     assert (out / "dashboard.png").stat().st_size > 10_000
     with sqlite3.connect(out / "history.sqlite") as db:

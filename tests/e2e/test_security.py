@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import subprocess
 import threading
-import time
 from pathlib import Path
 
 import msgpack
@@ -184,7 +183,12 @@ def test_without_credentials_or_with_another_nodes_nothing_gets_through_the_rout
                 intruder.liveliness().declare_token(keys.full(run_id, keys.alive(n)))
                 for n in ("level_controller", "clock")
             ]
-            time.sleep(0.05)
+            held_from = current[0]  # hold the tokens while the run takes a round
+            wait_until(
+                lambda h=held_from: current[0] > h or proc.poll() is not None,
+                timeout=30,
+                what="a round of the run with the forged tokens declared",
+            )
             for token in tokens:
                 token.undeclare()
         intruder.close()
