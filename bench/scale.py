@@ -23,27 +23,17 @@ round whose cost does not grow with the number of nodes.
 from __future__ import annotations
 
 import argparse
-import sqlite3
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from engines import rounds_of
 
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scale import write_scale
 from runtime.scenario import load_scenario
-
-
-def rounds_of(run_dir: Path) -> int:
-    """The clock rounds of a bus run (its history's ticks)."""
-    db = sqlite3.connect(run_dir / "history.sqlite")
-    try:
-        (n,) = db.execute("SELECT COUNT(*) FROM ticks").fetchone()
-    finally:
-        db.close()
-    return int(n)
 
 
 def growth(ns: list[int], per_unit: list[float]) -> float:

@@ -8,13 +8,13 @@ warning.
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 from dashboard.server import Dashboard, serve
+from runtime.security import is_loopback_host
 
 __all__ = ["DEFAULT_PORT", "add_arguments", "port_number", "run", "spawn"]
 
@@ -51,7 +51,7 @@ def port_number(text: str) -> int:
 def run(args: argparse.Namespace) -> int:
     """Serve the dashboard of ``args.dir`` until interrupted."""
     dashboard = Dashboard(Path(args.dir), poll_s=args.poll)
-    if not _is_loopback(args.host):
+    if not is_loopback_host(args.host):
         print(
             f"wncs dashboard: warning: serving on {args.host}: anyone who reaches this port can "
             "watch the run and put requests into it",
@@ -83,12 +83,3 @@ def spawn(run_dir: Path, port: int) -> subprocess.Popen[bytes]:
 
 def _lower_priority() -> None:
     os.nice(10)
-
-
-def _is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False

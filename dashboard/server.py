@@ -40,11 +40,10 @@ from core.errors import ConfigError
 from dashboard.commands import CommandError, parse
 from dashboard.feed import HistoryFeed
 from dashboard.view import RunView
-from kernel.security import SECURITY_DIR
 from runtime.artefacts import HISTORY_FILE, RUN_FILE, SCENARIO_FILE
 from runtime.inject import send
 from runtime.scenario import load_scenario
-from runtime.security import DASHBOARD, credentials_of
+from runtime.security import DASHBOARD, login_of
 
 __all__ = ["Dashboard", "create_app", "serve", "STATIC"]
 
@@ -177,8 +176,7 @@ class Dashboard:
                 "reason": "the run has ended: a replay takes no requests",
             }
         assert self.info.endpoint is not None and self.info.run_id is not None
-        security = self.run_dir / SECURITY_DIR  # a secure run: the dashboard's own identity
-        creds = credentials_of(security, DASHBOARD) if security.is_dir() else None
+        creds = login_of(self.run_dir, DASHBOARD)  # a secure run: the dashboard's own login
         try:
             await anyio.to_thread.run_sync(
                 lambda: send(

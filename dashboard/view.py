@@ -37,14 +37,14 @@ from bus_schemas import keys
 from core.time import to_units
 from dashboard.feed import Row
 from gateway.topology import Topology
-from runtime.scenario import Scenario
+from runtime.scenario import GatewayNodeConfig, Scenario
 
 __all__ = ["RunView", "EVENT_TYPES", "decimate"]
 
 EVENT_TYPES = ("node_down", "node_up", "link_degraded", "interference")
 """The network events the page offers as buttons and forms (``wncs inject`` takes them all)."""
 
-Handler = Callable[[Row, "_Ctx"], None]
+Handler = Callable[["_Ctx"], None]
 
 
 def decimate(points: list[list[Any]], cap: int) -> list[list[Any]]:
@@ -89,13 +89,11 @@ class _Network:
     events at their times, the injected ones as the clock stamped them, batteries from
     ``net/stats``."""
 
-    def __init__(self, scenario: Scenario, name: str) -> None:
-        cfg = scenario.nodes[name]
-        self.topology = Topology(cfg.topology)  # type: ignore[attr-defined]
-        self.tsch = getattr(cfg, "mac", None) == "tsch"
+    def __init__(self, cfg: GatewayNodeConfig) -> None:
+        self.topology = Topology(cfg.topology)
+        self.tsch = cfg.mac == "tsch"
         self.scheduled = sorted(
-            ((e.t, e.event.model_dump(mode="json")) for e in cfg.events),  # type: ignore[attr-defined]
-            key=lambda te: te[0],
+            ((e.t, e.event.model_dump(mode="json")) for e in cfg.events), key=lambda te: te[0]
         )
         self.battery: dict[str, float] = {}
         self.proposals: dict[int, dict[str, Any]] = {}
@@ -136,7 +134,9 @@ class RunView:
         self.t = 0.0
         self.round = 0
         self.rows = 0
-        self.networks = {g: _Network(scenario, g) for g in scenario.gateways()}
+        self.networks = {
+            g: _Network(cfg) for g, cfg in sorted(scenario.nodes_of(GatewayNodeConfig).items())
+        }
         self._paths: dict[str, _Path] = {}
         self._handlers: dict[str, Handler | None] = {}
         self._sp_keys = {scenario.setpoint_key(n): n for n in scenario.loops}
@@ -220,7 +220,7 @@ class RunView:
             if handler is None:
                 continue
             try:
-                handler(row, _Ctx(t, batch, touched, changed_nets))
+                handler(_Ctx(t, row.key, row.src, row.body, batch, touched, changed_nets))
             except (KeyError, TypeError, ValueError, IndexError) as err:
                 batch.setdefault("invalid", []).append(
                     {"t": t, "key": row.key, "src": row.src, "reason": f"unreadable: {err}"}
@@ -250,27 +250,25 @@ class RunView:
         loops = self.scenario.loops
         if key in self._sp_keys:
             loop = self._sp_keys[key]
-            return lambda row, c: c.add(f"sp/{loop}", [c.t, float(row.body["value"])])
+            return lambda c: c.add(f"sp/{loop}", [c.t, float(c.body["value"])])
         if len(parts) == 3 and parts[0] == "loop" and parts[1] in loops:
             loop = parts[1]
             if parts[2] == "meas":
-                return lambda row, c: self._meas(loop, row, c)
+                return lambda c: self._meas(loop, c)
             if parts[2] == "u":
-                return lambda row, c: c.add(f"u/{loop}", [c.t, float(row.body["value"])])
+                return lambda c: c.add(f"u/{loop}", [c.t, float(c.body["value"])])
             return None
         if key in self._actuators:
             path = f"{self._actuators[key]}.actuator"
-            return lambda row, c: self._delay(path, c, c.t - to_units(row.body["t_computed"]))
+            return lambda c: self._delay(path, c, c.t - to_units(c.body["t_computed"]))
         if len(parts) == 3 and parts[0] == "plant" and parts[2] == "state":
             outputs = {
                 n: lp.sensor for n, lp in loops.items() if lp.plant == parts[1] and lp.sensor
             }
-            return lambda row, c: self._state(outputs, row, c)
+            return lambda c: self._state(outputs, c)
         if key in self._sampling and not self._governed:
             loop = self._sampling[key]
-            return lambda row, c: c.add(
-                f"period/{loop}", [c.t, to_units(row.body["period"]), True]
-            )
+            return lambda c: c.add(f"period/{loop}", [c.t, to_units(c.body["period"]), True])
         if key == keys.wncsca_rates():
             return self._rates
         if key == keys.wncsca_decision():
@@ -284,16 +282,15 @@ class RunView:
         if key == keys.net_lost():
             return self._lost
         if parts[0] == "events" and len(parts) == 2:
-            return lambda row, c: self._event(parts[1], row, c)
+            return lambda c: self._event(parts[1], c)
         if parts[0] == "ops":
-            return lambda row, c: c.add(
-                "timeline", {"t": c.t, "kind": "request", "key": key, "body": row.body}
+            return lambda c: c.add(
+                "timeline", {"t": c.t, "kind": "request", "key": key, "body": c.body}
             )
         return None
 
-    def _meas(self, loop: str, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _meas(self, loop: str, c: _Ctx) -> None:
+        body = c.body
         c.add(f"meas/{loop}", [c.t, float(body["value"])])
         self._delay(f"{loop}.sensor", c, c.t - to_units(body["t_sampled"]))
 
@@ -302,31 +299,33 @@ class RunView:
         c.touched.add(path)
         c.add(f"delay/{path}", [c.t, delay])
 
-    def _state(self, outputs: dict[str, str], row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _state(self, outputs: dict[str, str], c: _Ctx) -> None:
+        body = c.body
         times = [to_units(t) for t in body["t"]]
         for loop, signal in outputs.items():
             values = body["values"].get(signal)
             if values is not None:
                 c.extend(f"y/{loop}", [[t, float(v)] for t, v in zip(times, values, strict=True)])
 
-    def _rates(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _rates(self, c: _Ctx) -> None:
+        body = c.body
         for loop, period in sorted(body["periods"].items()):
             closed = bool(body["closed"].get(loop, True))
             c.add(f"period/{loop}", [c.t, to_units(period), closed])
         c.add(
             "timeline",
-            {"t": c.t, "kind": "rates", "mode": body["mode"], "method": body.get("method"),
-             "periods": {n: to_units(p) for n, p in body["periods"].items()},
-             "closed": body["closed"]},
+            {
+                "t": c.t,
+                "kind": "rates",
+                "mode": body["mode"],
+                "method": body.get("method"),
+                "periods": {n: to_units(p) for n, p in body["periods"].items()},
+                "closed": body["closed"],
+            },
         )
 
-    def _decision(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _decision(self, c: _Ctx) -> None:
+        body = c.body
         c.add(
             "timeline",
             {
@@ -351,14 +350,13 @@ class RunView:
         if tsch:
             c.add(f"schedule/{name}", {"t": c.t, **tsch})
 
-    def _proposal(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
-        net = self.networks.get(row.src)
+    def _proposal(self, c: _Ctx) -> None:
+        body = c.body
+        net = self.networks.get(c.src)
         if net is not None:
             net.proposals[int(body["id"])] = body
             if body.get("tsch") and not self._governed:
-                c.add(f"schedule/{row.src}", {"t": c.t, **body["tsch"]})
+                c.add(f"schedule/{c.src}", {"t": c.t, **body["tsch"]})
         c.add(
             "timeline",
             {
@@ -371,32 +369,35 @@ class RunView:
             },
         )
 
-    def _applied(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _applied(self, c: _Ctx) -> None:
+        body = c.body
         routes = _routes(body["paths"])
-        if row.src in self.networks:
-            c.add(f"routes/{row.src}", {"t": c.t, "routes": routes})
+        if c.src in self.networks:
+            c.add(f"routes/{c.src}", {"t": c.t, "routes": routes})
         if body["event"] != "rates":
             c.add(
                 "timeline",
-                {"t": c.t, "kind": "applied", "event": body["event"], "source": body["source"],
-                 "routes": routes, "reason": body.get("reason")},
+                {
+                    "t": c.t,
+                    "kind": "applied",
+                    "event": body["event"],
+                    "source": body["source"],
+                    "routes": routes,
+                    "reason": body.get("reason"),
+                },
             )
 
-    def _stats(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
-        net = self.networks.get(row.src)
+    def _stats(self, c: _Ctx) -> None:
+        body = c.body
+        net = self.networks.get(c.src)
         if net is None:
             return
         for node, stats in body["nodes"].items():
             net.battery[node] = float(stats["battery_pct"])
-        c.changed_nets.add(row.src)
+        c.changed_nets.add(c.src)
 
-    def _lost(self, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
+    def _lost(self, c: _Ctx) -> None:
+        body = c.body
         if body["direction"] == "link":
             return
         path = f"{body['loop']}.{body['direction']}"
@@ -406,24 +407,34 @@ class RunView:
         stats.reasons[reason] = stats.reasons.get(reason, 0) + 1
         c.touched.add(path)
 
-    def _event(self, network: str, row: Row, c: _Ctx) -> None:
-        body = row.body
-        assert body is not None
-        c.add("timeline", {"t": c.t, "kind": "request", "key": row.key, "body": body})
+    def _event(self, network: str, c: _Ctx) -> None:
+        body = c.body
+        c.add("timeline", {"t": c.t, "kind": "request", "key": c.key, "body": body})
         net = self.networks.get(network)
         if net is not None and net.apply(body["event"]):
             c.changed_nets.add(network)
 
 
 class _Ctx:
-    """The batch a row's records go into, at the row's time."""
+    """One valid row (its time in units, key, source and body) and the batch its records go
+    into."""
 
-    __slots__ = ("t", "batch", "touched", "changed_nets")
+    __slots__ = ("t", "key", "src", "body", "batch", "touched", "changed_nets")
 
     def __init__(
-        self, t: float, batch: dict[str, list[Any]], touched: set[str], changed_nets: set[str]
+        self,
+        t: float,
+        key: str,
+        src: str,
+        body: dict[str, Any],
+        batch: dict[str, list[Any]],
+        touched: set[str],
+        changed_nets: set[str],
     ) -> None:
         self.t = t
+        self.key = key
+        self.src = src
+        self.body = body
         self.batch = batch
         self.touched = touched
         self.changed_nets = changed_nets

@@ -43,7 +43,7 @@ from agents.wncsca.timeline import format_timeline
 from core.errors import ConfigError, SchemaError, WncsError
 from dashboard import command as dashboard_command
 from kernel.bus import CONFIG_ENV, CREDENTIALS_ENV, init_zenoh_log
-from kernel.security import SECURITY_DIR, client_settings, credential_path, read_credential
+from kernel.security import client_settings, credential_path, read_credential
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import RUN_FILE
 from runtime.export import export_run
@@ -54,7 +54,7 @@ from runtime.report import load_run, write_plots, write_summary
 from runtime.router import serve_router
 from runtime.scale import PLANTS, write_scale
 from runtime.scenario import Scenario, load_scenario
-from runtime.security import INJECT, SECURITY_ENV, credentials_of
+from runtime.security import INJECT, SECURITY_ENV, login_of
 from runtime.sweep import SWEEP_CSV, SWEEP_PARQUET, SWEEP_PNG, parse_axis, sweep
 
 __all__ = ["main", "build_parser", "EXAMPLES"]
@@ -681,8 +681,8 @@ def _cmd_inject(args: argparse.Namespace) -> int:
     creds = None
     if args.credentials:
         creds = client_settings(read_credential(Path(args.credentials)))
-    elif run_dir is not None and (run_dir / SECURITY_DIR).is_dir():
-        creds = credentials_of(run_dir / SECURITY_DIR, INJECT)
+    elif run_dir is not None:
+        creds = login_of(run_dir, INJECT)
     send(endpoint, run_id, request, settings=creds)
     what = request.event or (
         f"mode {request.mode}" if request.mode is not None else f"set point {request.setpoint}"

@@ -102,13 +102,24 @@ def credentials_of(directory: Path, name: str) -> dict[str, Any]:
     return client_settings(read_credential(credential_path(directory, name)))
 
 
+def login_of(run_dir: Path, name: str) -> dict[str, Any] | None:
+    """The session settings of identity ``name`` for the run in ``run_dir``: its credentials if
+    the run is secure (it has ``security/``), ``None`` for an ``--insecure`` run."""
+    directory = run_dir / SECURITY_DIR
+    return credentials_of(directory, name) if directory.is_dir() else None
+
+
 def is_loopback(endpoint: str) -> bool:
     """Whether a zenoh endpoint (``tcp/127.0.0.1:7447``) binds the loopback interface only."""
-    address = endpoint.partition("/")[2].rpartition(":")[0].strip("[]")
-    if address == "localhost":
+    return is_loopback_host(endpoint.partition("/")[2].rpartition(":")[0].strip("[]"))
+
+
+def is_loopback_host(host: str) -> bool:
+    """Whether ``host`` (an address, or ``localhost``) is the loopback interface."""
+    if host == "localhost":
         return True
     try:
-        return ipaddress.ip_address(address).is_loopback
+        return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False  # a host name or an interface: not provably loopback
 
