@@ -443,6 +443,7 @@ class SelfTuningNLPI:
             u_max=u_max,
             integration=config.integration,
             start=config.start,
+            u_start=config.u_start,
         )
         tenth = config.settling_time / 10.0
         est = TankEstimator(

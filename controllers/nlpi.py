@@ -37,6 +37,11 @@ At the first sample there is no previous one: ``dt = 0`` (the law never reads a 
 ``start: rest`` (default) the integral is then set to the value that holds the measured level at
 rest, ``I_0 = K_p h_0 / K_i = 2 zeta h_0 / w_n`` (zero for an empty tank, so the paper's
 experiments are unchanged; bumpless for a loop that starts at equilibrium); ``start: zero`` sets 0.
+Where the plant's equilibrium is not the design model's (an inflow the law does not know of, e.g.
+from an upstream tank, :mod:`plants.tank_train`), ``u_start`` gives the command the loop holds
+at the start, and the integral is set so that the first command is exactly that one,
+``I_0 = (u_start + K_p h_0 - K_l sqrt(h_0)) / K_i`` (bumpless from the held input; it overrides
+``start``).
 Anti-windup by clamping the integrator at actuator saturation (section 3.4): an update that would
 push the command past a limit is cut so that the command just reaches it (and dropped if the
 command is already past it), so the integral never winds up beyond what holds the limit.
@@ -148,6 +153,11 @@ class _SpecConfig(BaseModel):
     start: Literal["rest", "zero"] = Field(
         default="rest", description="rest: integral set at the first sample to hold y at rest"
     )
+    u_start: float | None = Field(
+        default=None,
+        description="command at the first sample (bumpless from the plant's held input): the "
+        "integral starts where it gives this command; None: as start says",
+    )
 
     @model_validator(mode="after")
     def _limits_ordered(self) -> _SpecConfig:
@@ -214,6 +224,7 @@ class _TwoDofBase:
         u_max: float,
         integration: Literal["backward", "forward", "trapezoidal"],
         start: Literal["rest", "zero"],
+        u_start: float | None = None,
     ) -> None:
         if not u_min < u_max:
             raise ValueError(f"u_min ({u_min}) must be below u_max ({u_max})")
@@ -221,6 +232,7 @@ class _TwoDofBase:
         self.u_max = float(u_max)
         self.integration = integration
         self.start = start
+        self.u_start = None if u_start is None else float(u_start)
         self.reset()
 
     def reset(self) -> None:
@@ -251,7 +263,9 @@ class _TwoDofBase:
         """
         e = r - y
         if self._t_prev is None:
-            if self.start == "rest":
+            if self.u_start is not None:
+                self.integral = (self.u_start - self._static(y)) / self.Ki
+            elif self.start == "rest":
                 self.integral = self._rest_integral(y)
             increment = 0.0
         else:
@@ -296,6 +310,8 @@ class NonlinearPI(_TwoDofBase):
         Integration rule (``backward`` is eq. (20) as corrected).
     start : {"rest", "zero"}
         Integral at the first sample.
+    u_start : float, optional
+        Command at the first sample (bumpless from a held input); overrides ``start``.
     """
 
     def __init__(
@@ -309,13 +325,16 @@ class NonlinearPI(_TwoDofBase):
         u_max: float = math.inf,
         integration: Literal["backward", "forward", "trapezoidal"] = "backward",
         start: Literal["rest", "zero"] = "rest",
+        u_start: float | None = None,
     ) -> None:
         if not (zeta > 0.0 and omega_n > 0.0):
             raise ValueError(f"zeta={zeta} and omega_n={omega_n} must be > 0")
         self.zeta = float(zeta)
         self.omega_n = float(omega_n)
         self.set_model(b, a_prime)
-        super().__init__(u_min=u_min, u_max=u_max, integration=integration, start=start)
+        super().__init__(
+            u_min=u_min, u_max=u_max, integration=integration, start=start, u_start=u_start
+        )
 
     @classmethod
     def from_config(
@@ -339,6 +358,7 @@ class NonlinearPI(_TwoDofBase):
             u_max=u_max,
             integration=config.integration,
             start=config.start,
+            u_start=config.u_start,
         )
 
     def set_model(self, b: float, a_prime: float) -> None:
@@ -370,7 +390,7 @@ class TwoDofPI(_TwoDofBase):
         Gains (see :func:`pi2dof_gains`).
     b, a_prime : float
         Design model, used only for the ``start: rest`` integral.
-    u_min, u_max, integration, start
+    u_min, u_max, integration, start, u_start
         As :class:`NonlinearPI`.
     """
 
@@ -385,6 +405,7 @@ class TwoDofPI(_TwoDofBase):
         u_max: float = math.inf,
         integration: Literal["backward", "forward", "trapezoidal"] = "backward",
         start: Literal["rest", "zero"] = "rest",
+        u_start: float | None = None,
     ) -> None:
         if not Ki > 0.0:
             raise ValueError(f"Ki={Ki} must be > 0")
@@ -392,7 +413,9 @@ class TwoDofPI(_TwoDofBase):
         self.Ki = float(Ki)
         self.b = float(b)
         self.a_prime = float(a_prime)
-        super().__init__(u_min=u_min, u_max=u_max, integration=integration, start=start)
+        super().__init__(
+            u_min=u_min, u_max=u_max, integration=integration, start=start, u_start=u_start
+        )
 
     @classmethod
     def from_config(
@@ -421,6 +444,7 @@ class TwoDofPI(_TwoDofBase):
             u_max=u_max,
             integration=config.integration,
             start=config.start,
+            u_start=config.u_start,
         )
 
     def _static(self, y: float) -> float:

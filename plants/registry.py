@@ -19,6 +19,7 @@ from plants.cstr_recycle import CSTRRecycle, CSTRRecycleParams
 from plants.jcstr import JCSTR, JCSTRParams
 from plants.perturbed_reduced import PerturbedReduced, PerturbedReducedParams
 from plants.tank import Tank, TankParams
+from plants.tank_train import TankTrain, TankTrainParams
 
 __all__ = ["MODELS", "build", "params_type"]
 
@@ -28,6 +29,12 @@ MODELS: Registry[Any] = Registry(
     kinds=[
         Kind("jcstr", JCSTRParams, JCSTR, "seed 000: the jacketed CSTR"),
         Kind("tank", TankParams, Tank, "seed 002: a tank with a free outlet"),
+        Kind(
+            "tank_train",
+            TankTrainParams,
+            TankTrain,
+            "seed 002's tanks in series, each feeding part of its outflow to the next",
+        ),
         Kind("cstr_recycle", CSTRRecycleParams, CSTRRecycle, "seed 001: two CSTRs with recycle"),
         Kind("cascade_ct", CascadeCTParams, CascadeCT, "seed 004: the cascade process"),
         Kind("column", ColumnParams, ColumnPlant, "seed 003: the non-linear distillation column"),

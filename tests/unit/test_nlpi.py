@@ -217,6 +217,22 @@ def test_start_at_rest_is_bumpless():
     assert base.step(0.0, 80.0, 80.0) == pytest.approx(SIM.equilibrium({"h": 80.0})[1][0])
 
 
+def test_u_start_starts_from_the_held_input_whatever_the_design_model():
+    """An inflow the law does not know of (a tank fed from upstream) moves the plant's rest
+    input away from the design model's; ``u_start`` starts the integral where it holds it."""
+    for held in (0.0, 0.69, 1.9):
+        for cls_config in (
+            NLPIConfig(overshoot_pct=OS_PAPER, settling_time=13.0, u_start=held),
+            PI2DOFConfig(overshoot_pct=OS_PAPER, settling_time=13.0, h_design=100.0, u_start=held),
+        ):
+            cls = NonlinearPI if isinstance(cls_config, NLPIConfig) else TwoDofPI
+            law = cls.from_config(cls_config, plant=SIM)
+            assert law.step(0.0, 80.0, 80.0) == pytest.approx(held, abs=1e-12)  # no bump
+            assert law.step(0.5, 80.0, 80.0) == pytest.approx(held, abs=1e-12)  # and it stays
+    # without it the law starts from the design model's rest, a' sqrt(h) / b
+    assert law_sim().step(0.0, 80.0, 80.0) == pytest.approx(0.25 * math.sqrt(80.0))
+
+
 def test_noisy_negative_level_gives_no_nan():
     law = law_sim()
     assert math.isfinite(law.step(0.0, -0.3, 10.0))
