@@ -8,7 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from core.record import summarize
 from runtime.cli import main
+from runtime.direct import simulate
+from runtime.history import load_record
 from runtime.launcher import launch
 from runtime.scale import scale_scenario, write_scale
 from runtime.scenario import GatewayNodeConfig, load_scenario
@@ -84,3 +87,26 @@ def test_three_loops_give_the_same_run_on_the_direct_and_threads_engines(tmp_pat
         assert loop["overshoot_pct"] is not None, name  # each loop stepped and was judged
     assert direct["loops"] == threads["loops"]  # traces, overshoots, settling times, IAE
     assert direct == threads
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("engine", ["threads", "processes"])
+def test_coupled_loops_give_the_direct_engines_run_on_the_bus_engines(tmp_path, engine):
+    """A train of four coupled tanks (``--plant tank_train``): the bus engine gives the direct
+    engine's summary (traces, metrics, network) and true states, bit for bit."""
+    path = tmp_path / "train4.yaml"
+    scenario = write_scale(4, path, plant="tank_train", per_gateway=2, end_time=20.0)
+    direct = simulate(scenario)
+    expected = _without_wall_clock(summarize(direct))
+    assert len(expected["loops"]) == 4
+    for name, loop in expected["loops"].items():
+        assert loop["overshoot_pct"] is not None, name  # each loop stepped and was judged
+    out = tmp_path / engine
+    res = launch(path, out, engine=engine)
+    assert res.code == 0, res.error
+    got = _without_wall_clock(res.summary)
+    assert got["loops"] == expected["loops"]  # traces, overshoots, settling times, IAE
+    assert {k: got.get(k) for k in expected} == expected  # a bus run adds its own entries
+    states = load_record(out / "history.sqlite", scenario, engine=engine).plants["train"]
+    assert states.t == direct.plants["train"].t
+    assert states.x == direct.plants["train"].x  # every level, bit for bit
