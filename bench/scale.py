@@ -10,6 +10,10 @@ few minutes), on each engine:
   the first round) apart from the run phase (first round to the clock's stop); the rounds are
   the history's ticks.
 
+``--plant tank_train`` runs the plant-wide scenario of coupled loops instead (N tanks in series
+in one plant, each tank's outflow partly feeding the next; ``wncs scale N --plant tank_train``,
+``scenarios/tank_train_20.yaml`` at N = 20), ``--plant jcstr`` N/2 reactors (times in pu).
+
 Printed: a table per engine and N (nodes, rounds, start-up, run, run seconds per simulated
 second and per round) and, per engine, the exponent ``k`` of ``run per unit ~ N^k`` fitted by
 least squares on log-log axes (1: linear growth; 2: quadratic). Independent loops sample at
@@ -17,7 +21,12 @@ their own instants once the WSN has delayed them, so the rounds grow as N: ``k``
 round whose cost does not grow with the number of nodes.
 
     .venv/bin/python bench/scale.py [--loops 10 50 100] [--engines direct threads processes]
-                                    [--end-time 10]
+                                    [--end-time 10] [--plant tank|jcstr|tank_train]
+
+The coupled scenario as shipped (20 loops, 60 s) on the bus engines::
+
+    .venv/bin/python bench/scale.py --plant tank_train --loops 20 --end-time 60 \
+                                    --engines threads processes
 """
 
 from __future__ import annotations
@@ -32,7 +41,7 @@ from engines import rounds_of
 
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.scale import write_scale
+from runtime.scale import PLANTS, write_scale
 from runtime.scenario import load_scenario
 
 
@@ -48,16 +57,28 @@ def main() -> None:
     parser.add_argument(
         "--engines", nargs="+", default=["direct", "threads", "processes"], help="engines to run"
     )
-    parser.add_argument("--end-time", type=float, default=10.0, help="simulated seconds per run")
+    parser.add_argument(
+        "--end-time", type=float, default=10.0, help="simulated time per run (s; jcstr: pu)"
+    )
+    parser.add_argument(
+        "--plant", choices=PLANTS, default="tank", help="tank_train: the coupled loops of one plant"
+    )
     args = parser.parse_args()
-    print(f"scale scenarios (tank loops over WSN paths), {args.end_time:g} s simulated each")
-    print("| engine | loops | nodes | rounds | start-up s | run s | run s per sim s | ms/round |")
+    unit = "pu" if args.plant == "jcstr" else "s"
+    print(
+        f"scale scenarios ({args.plant} loops over WSN paths), {args.end_time:g} {unit} "
+        "simulated each"
+    )
+    print(
+        "| engine | loops | nodes | rounds | start-up s | run s "
+        f"| run s per sim {unit} | ms/round |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     fits: dict[str, tuple[list[int], list[float]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.loops:
             path = Path(tmp) / f"scale{n}.yaml"
-            write_scale(n, path, end_time=args.end_time)
+            write_scale(n, path, plant=args.plant, end_time=args.end_time)
             scenario = load_scenario(path)
             nodes = len(scenario.participants()) + 1  # and the clock
             for engine in args.engines:
