@@ -12,7 +12,7 @@
 ``wncs schema [--out FILE]``           the scenario files' JSON Schema, for editors
 ``wncs sweep SCENARIO --grid P=a:b:n --out DIR``  a grid of overrides on the direct engine
 ``wncs export RUN_DIR --csv|--parquet``  every artefact of a run as CSV or Parquet files
-``wncs scale N --out FILE``            write a scenario of N independent loops over WSN paths
+``wncs scale N --out FILE``            write a scenario of N loops over WSN paths
 
 ``run``, ``node``, ``validate`` and ``sweep`` take ``--set dotted.path=VALUE`` (repeatable,
 :mod:`runtime.overrides`): the value, parsed as YAML, replaces the field in the file's mapping
@@ -493,13 +493,14 @@ def build_parser() -> argparse.ArgumentParser:
     scale = _command(
         sub,
         "scale",
-        "write a scenario of N independent loops over WSN paths",
-        "Write a scenario file of N independent loops, each its own plant and controller, every "
-        "sensor two hops from a gateway over a lossy WSN, with set-point steps staggered across "
-        "the loops (tank: seed 002's tank and non-linear PI, steps of 20 mm, 60 s; jcstr: N/2 "
-        "reactors of seed 000's benchmark, 6 pu). Loops are grouped into areas of --per-gateway "
-        "loops, each with its own gateway node. The file is validated before it is written; "
-        "run it with wncs run.",
+        "write a scenario of N loops over WSN paths",
+        "Write a scenario file of N loops, each its own controller, every sensor two hops from a "
+        "gateway over a lossy WSN, with set-point steps staggered across the loops (tank: N "
+        "independent tanks of seed 002 with its non-linear PI, steps of 20 mm, 60 s; jcstr: N/2 "
+        "reactors of seed 000's benchmark, 6 pu; tank_train: one plant of N such tanks in series, "
+        "half of each outflow feeding the next, N coupled loops). Loops are grouped into areas "
+        "of --per-gateway loops, each with its own gateway node. The file is validated before "
+        "it is written; run it with wncs run.",
     )
     scale.add_argument("n", type=int, metavar="N", help="number of loops (jcstr: even)")
     scale.add_argument("--out", required=True, metavar="FILE", help="scenario file to write")
