@@ -34,6 +34,7 @@ __all__ = [
     "is_put",
     "put_when_heard",
     "init_zenoh_log",
+    "zenoh_log_started",
     "base_config",
     "CONFIG_ENV",
     "CREDENTIALS_ENV",
@@ -72,6 +73,11 @@ def init_zenoh_log(level: str = "error") -> bool:
     zenoh.init_log_from_env_or(level)
     _LOG_INIT = True
     return True
+
+
+def zenoh_log_started() -> bool:
+    """Whether zenoh's logging has started in this process (its filter is then fixed)."""
+    return _LOG_INIT
 
 
 class BusConfig(BaseModel):

@@ -45,7 +45,7 @@ from dashboard import command as dashboard_command
 from kernel.bus import CONFIG_ENV, CREDENTIALS_ENV, init_zenoh_log
 from kernel.security import client_settings, credential_path, read_credential
 from runtime.analysis import analyze, parse_delays
-from runtime.artefacts import RUN_FILE
+from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.export import export_run
 from runtime.forkserver import run_node
 from runtime.inject import build_request, send
@@ -325,6 +325,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     router.add_argument("--insecure", action="store_true", help="no credentials, no access control")
     router.add_argument("--zenoh-config", default=None, metavar="FILE", help="zenoh config file")
+    router.add_argument(
+        "--run-id",
+        default=None,
+        metavar="ID",
+        help="the first router: the run's id (default: a random one; compose.yaml fixes it)",
+    )
     _add_set(router)
 
     report = _command(sub, "report", "redraw a run's plots and print its figures")
@@ -580,6 +586,13 @@ def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> i
     if result.code != 0:
         print(f"wncs run: {result.error}", file=sys.stderr)
         return result.code
+    refused = (result.summary.get("router") or {}).get("refused")
+    if refused:
+        log = Path(args.out) / REFUSED_LOG
+        print(
+            f"wncs run: the router refused {refused} attempts on the bus (see {log})",
+            file=sys.stderr,
+        )
     if not args.quiet:
         s = result.summary
         print(
@@ -619,6 +632,7 @@ def _cmd_router(args: argparse.Namespace) -> int:
         insecure=args.insecure,
         zenoh_config=args.zenoh_config,
         overrides=tuple(args.set),
+        run_id=args.run_id,
     )
 
 

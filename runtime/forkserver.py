@@ -22,7 +22,6 @@ as ``subprocess`` gives it: negative for a signal), and leaves when every child 
 from __future__ import annotations
 
 import argparse
-import ctypes
 import gc
 import logging
 import os
@@ -32,6 +31,7 @@ from collections.abc import Sequence
 
 from core.errors import ConfigError, SchemaError, WncsError
 from kernel.bus import open_client
+from kernel.lifetime import die_with_parent
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.scenario import Scenario, load_scenario
 
@@ -81,22 +81,10 @@ def run_node(
         session.close()
 
 
-def _die_with_parent(parent: int) -> None:
-    """SIGTERM when the parent dies (Linux ``prctl(PR_SET_PDEATHSIG)``); leave at once if it
-    is gone already."""
-    try:
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG = 1
-    except (OSError, AttributeError):  # not Linux
-        pass
-    if os.getppid() != parent:
-        os._exit(1)
-
-
 def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int) -> int:
     """In a forked child: become node ``name``'s process (own group, its log) and run it."""
     os.setsid()
-    _die_with_parent(parent)
+    die_with_parent(parent)
     security = os.environ.get(_SECURITY_ENV)
     if security:  # a secure run: this node's credentials, as wncs node finds them
         os.environ[_CREDENTIALS_ENV] = os.path.join(security, f"{name}.json")

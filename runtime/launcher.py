@@ -10,7 +10,6 @@ one PNG per loop, and ``logs/`` with each process's log.
 
 from __future__ import annotations
 
-import ctypes
 import json
 import logging
 import os
@@ -31,17 +30,18 @@ import yaml
 from bus_schemas import Stop, Tick, codec, keys
 from core.errors import ConfigError, NodeFault, SchemaError
 from core.time import to_units
-from kernel.bus import DEFAULT_LISTEN, is_put, open_client, open_router
+from kernel.bus import DEFAULT_LISTEN, is_put, open_client
 from kernel.clock import ClockRunner
-from kernel.security import router_settings
-from runtime.artefacts import RUN_FILE, SCENARIO_FILE
+from kernel.lifetime import die_with_parent
+from kernel.router_process import RouterProcess
+from runtime.artefacts import REFUSED_LOG, RUN_FILE, SCENARIO_FILE
 from runtime.direct import simulate
 from runtime.forked import ForkServer
 from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
-from runtime.security import SECURITY_ENV, credentials_of, warn_insecure
+from runtime.security import LAUNCHER, SECURITY_ENV, credentials_of, warn_insecure
 from runtime.security import prepare as prepare_security
 
 __all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
@@ -71,16 +71,6 @@ class RunResult:
 
 INTERRUPTED = 130
 """Exit code of a run stopped by Ctrl-C or SIGTERM (the shell's 128 + SIGINT)."""
-
-
-def _die_with_parent() -> None:
-    """In a node process before it runs (``preexec_fn``): SIGTERM when the launcher dies, even
-    by ``kill -9`` (Linux ``prctl(PR_SET_PDEATHSIG)``), so no node outlives its run."""
-    try:
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG = 1
-    except (OSError, AttributeError):  # not Linux: the launcher's own clean-up still applies
-        pass
 
 
 def _wncs_executable() -> list[str]:
@@ -274,12 +264,21 @@ def _launch_bus(
     listen = listen or DEFAULT_LISTEN
     security = None if insecure else prepare_security(out, scenario, run_id)
     warn_insecure(listen, secure=security is not None)
-    router, locators = open_router(
+    router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
         listen,
-        settings=None if security is None else router_settings(security),
-        config_file=zenoh_config,
+        security=security,
+        zenoh_config=zenoh_config,
+        refused_log=None if security is None else out / REFUSED_LOG,
     )
+    locators = router.locators
     endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
+    try:  # the launcher's own session: it shows the run's progress
+        watch = open_client(
+            endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
+        )
+    except ConfigError:
+        router.close()
+        raise
     run_info["endpoint"] = endpoint
     run_info["secure"] = security is not None
     previous = os.environ.pop(SECURITY_ENV, None)
@@ -290,9 +289,9 @@ def _launch_bus(
         on_start(out)
     prog = _Progress(run_id, scenario, progress)
     subs = [
-        router.declare_subscriber(keys.full(run_id, keys.tick()), prog.on_tick),
-        router.declare_subscriber(keys.full(run_id, keys.stop()), prog.on_stop),
-        router.liveliness().declare_subscriber(
+        watch.declare_subscriber(keys.full(run_id, keys.tick()), prog.on_tick),
+        watch.declare_subscriber(keys.full(run_id, keys.stop()), prog.on_stop),
+        watch.liveliness().declare_subscriber(
             keys.full(run_id, keys.alive_all()), prog.on_alive, history=True
         ),
     ]
@@ -332,7 +331,8 @@ def _launch_bus(
         prog.show(final=True)
         for s in subs:
             s.undeclare()
-        router.close()
+        watch.close()
+        refusals = router.close()
         os.environ.pop(SECURITY_ENV, None)
         if previous is not None:
             os.environ[SECURITY_ENV] = previous
@@ -343,7 +343,7 @@ def _launch_bus(
         # what the history holds up to the interruption: a partial summary, said so
         rec = load_record(out / "history.sqlite", scenario, engine=engine)
         rec.wall_s = wall_end - wall0
-        summary = write_summary(rec, out, complete=False, interrupted_at=prog.t)
+        summary = write_summary(rec, out, complete=False, interrupted_at=prog.t, router=refusals)
         write_plots(rec, out, scenario=scenario)
         return RunResult(code, error, summary, out)
     if code != 0:
@@ -353,7 +353,7 @@ def _launch_bus(
     first = prog.first_tick_at or t_started or wall0
     stopped = prog.stop_at or wall_end
     rec.phases = {"startup": first - wall0, "run": stopped - first, "teardown": wall_end - stopped}
-    summary = write_summary(rec, out)
+    summary = write_summary(rec, out, router=refusals)
     write_plots(rec, out, scenario=scenario)
     return RunResult(0, None, summary, out)
 
@@ -379,7 +379,7 @@ def _run_processes(
         run_id=run_info["run_id"],
         logs=logs,
         args=[*options.get("historian", []), *options.get("clock", []), *common_args],
-        preexec_fn=_die_with_parent,
+        preexec_fn=die_with_parent,
     )
     try:
         try:

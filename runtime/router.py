@@ -18,6 +18,7 @@ serves until SIGINT or SIGTERM.
 from __future__ import annotations
 
 import json
+import math
 import secrets
 import signal
 import sys
@@ -25,10 +26,12 @@ import threading
 from pathlib import Path
 from typing import Any, TextIO
 
+from bus_schemas import keys
 from core.errors import ConfigError
+from kernel.audit import LogCapture, Refused
 from kernel.bus import open_router
 from kernel.security import SECURITY_DIR, router_settings
-from runtime.artefacts import RUN_FILE
+from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.scenario import load_scenario
 from runtime.security import prepare, warn_insecure
 
@@ -41,24 +44,35 @@ def router_run(
     *,
     insecure: bool = False,
     overrides: tuple[str, ...] = (),
+    run_id: str | None = None,
 ) -> tuple[dict[str, Any], Path | None]:
     """The run a router serves: ``out/run.json`` if another router of it wrote one (with its
-    security), else a new run written there. Returns the run's information and its security
-    directory (``None``: insecure)."""
+    security), else a new run written there, with id ``run_id`` (default: a random one).
+    Returns the run's information and its security directory (``None``: insecure)."""
     run_file = out / RUN_FILE
+    if run_id is not None:
+        try:
+            keys.check_name(run_id, "--run-id")
+        except ValueError as err:
+            raise ConfigError(str(err)) from err
     if run_file.exists():
         try:
             info: dict[str, Any] = json.loads(run_file.read_text())
             info["run_id"]
         except (OSError, ValueError, KeyError) as err:
             raise ConfigError(f"{run_file}: not a run's file ({err})") from err
+        if run_id is not None and info["run_id"] != run_id:
+            raise ConfigError(
+                f"--run-id {run_id}: {run_file} is run {info['run_id']}'s (a router joins the "
+                "run its directory holds; give another --out for a new run)"
+            )
         security = out / SECURITY_DIR
         if info.get("secure", True) and not security.is_dir():
             raise ConfigError(f"{security}: the run is secure, and its security is not here")
         return info, (security if info.get("secure", True) else None)
     scenario = load_scenario(scenario_path, overrides=list(overrides))
     out.mkdir(parents=True, exist_ok=True)
-    run_id = "r" + secrets.token_hex(5)
+    run_id = run_id or "r" + secrets.token_hex(5)
     security = None if insecure else prepare(out, scenario, run_id)
     info = {
         "run_id": run_id,
@@ -83,11 +97,32 @@ def serve_router(
     overrides: tuple[str, ...] = (),
     stream: TextIO | None = None,
     stop: threading.Event | None = None,
+    run_id: str | None = None,
 ) -> int:
     """Open the router, record it in ``out/run.json``, and serve until ``stop`` is set or a
-    SIGINT/SIGTERM arrives; return the exit code (0)."""
-    stream = stream or sys.stdout
-    info, security = router_run(scenario_path, out, insecure=insecure, overrides=overrides)
+    SIGINT/SIGTERM arrives; return the exit code (0).
+
+    A secure router audits (:mod:`kernel.audit`): it appends each attempt it refuses to
+    ``out/refused.log``, says the first of each kind (and the 10th, 100th, ...) on ``stream``,
+    and the total when it stops. It can only if zenoh's logging has not started yet in this
+    process (``wncs router`` is a process of its own); otherwise it says it does not count."""
+    info, security = router_run(
+        scenario_path, out, insecure=insecure, overrides=overrides, run_id=run_id
+    )
+    said: list[TextIO] = []  # where refusals are said, once known
+
+    def say_refused(attempt: Refused, count: int) -> None:
+        if said and (count == 1 or math.log10(count).is_integer()):
+            said[0].write(f"wncs router: refused {attempt} ({count} so far)\n")
+            said[0].flush()
+
+    capture = None
+    if security is not None:
+        capture = LogCapture(out / REFUSED_LOG, on_refused=say_refused)
+        if not capture.start():
+            capture = None
+    stream = stream or sys.stdout  # (after the capture: sys.stdout is then a copy of fd 1)
+    said.append(stream)
     warn_insecure(listen, secure=security is not None)
     zid = "%x" % (secrets.randbits(124) | 1 << 124)  # 32 hex digits, no leading 0 (zenoh)
     known = {r["endpoint"]: r["zid"] for r in info.get("routers", [])}
@@ -110,9 +145,16 @@ def serve_router(
     tmp = out / (RUN_FILE + ".tmp")
     tmp.write_text(json.dumps(info, indent=1) + "\n")
     tmp.replace(out / RUN_FILE)
+    audit = (
+        f"; refused attempts go to {out / REFUSED_LOG}"
+        if capture
+        else (
+            "; refused attempts not counted (zenoh's log was started already)" if security else ""
+        )
+    )
     stream.write(
         f"wncs router: run {info['run_id']} ({'secure' if security else 'INSECURE'}) on "
-        f"{endpoint}{' joined to ' + ', '.join(connect) if connect else ''}\n"
+        f"{endpoint}{' joined to ' + ', '.join(connect) if connect else ''}{audit}\n"
     )
     stream.flush()
     stop = stop or threading.Event()
@@ -128,4 +170,8 @@ def serve_router(
             pass
     finally:
         router.close()
+        if capture is not None:
+            refused = capture.close()["refused"]
+            stream.write(f"wncs router: stopped; it refused {refused} attempts\n")
+            stream.flush()
     return 0

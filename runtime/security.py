@@ -7,10 +7,12 @@ and the clock's tick and stop, declare a liveliness token only under its own nam
 only the clock's. The clock publishes ``clock/*`` and the requests it stamps, and listens to
 ``clock/done/*`` and
 ``ops/inject``. ``wncs inject`` may put exactly ``ops/inject`` (and learn that the clock listens
-there); ``dashboard`` may put exactly ``ops/inject`` too, and read the run (it shows it). The
-historian reads everything and publishes nothing. Every publisher may learn of every subscription
-in the run (``matches``): a zenoh 1.10 client's declared publisher sends nothing to a router
-that has not told it of a matching subscriber, and the historian's is ``wncs/<run>/**``.
+there); ``dashboard`` may put exactly ``ops/inject`` too, and read the run (it shows it);
+``launcher`` (``wncs run``'s own session, for its progress line) reads the ticks and the stop
+and watches who is alive. The historian reads everything and publishes nothing. Every
+publisher may learn of every subscription in the run (``matches``): a zenoh 1.10 client's
+declared publisher sends nothing to a router that has not told it of a matching subscriber,
+and the historian's is ``wncs/<run>/**``.
 :func:`prepare` writes the credentials and the access control under ``<run dir>/security``
 (:mod:`kernel.security`).
 """
@@ -39,6 +41,7 @@ __all__ = [
     "INJECT",
     "DASHBOARD",
     "HISTORIAN",
+    "LAUNCHER",
     "grants",
     "prepare",
     "credentials_of",
@@ -53,6 +56,7 @@ authenticates with ``NAME.json`` from it (the launcher sets it for its node proc
 INJECT = "inject"
 DASHBOARD = "dashboard"
 HISTORIAN = "historian"
+LAUNCHER = "launcher"
 
 
 def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
@@ -80,6 +84,9 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
         matches=full("**"),
     )
     out[INJECT] = Grant(puts=full(keys.inject()), matches=full(keys.inject()))
+    out[LAUNCHER] = Grant(  # wncs run's progress line: the ticks, the stop, who is alive
+        subscribes=full(keys.tick(), keys.stop()), watches=full(keys.alive_all())
+    )
     out[DASHBOARD] = Grant(
         puts=full(keys.inject()),
         matches=full(keys.inject()),

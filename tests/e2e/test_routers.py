@@ -13,11 +13,14 @@ from pathlib import Path
 
 import pytest
 
+from bus_schemas import keys
+from core.errors import ConfigError
 from core.record import summarize
+from kernel.bus import open_client
 from kernel.security import SECURITY_DIR
 from runtime.history import load_record, messages_digest
 from runtime.scenario import load_scenario
-from runtime.security import SECURITY_ENV
+from runtime.security import SECURITY_ENV, credentials_of
 from tests.conftest import BENCHMARK, wait_until
 from tests.e2e.test_runs import WNCS, assert_same_traces, traces, wncs_run
 
@@ -84,3 +87,42 @@ def test_a_run_over_two_chained_routers_equals_the_single_router_run(tmp_path):
     assert messages_digest(history) == messages_digest(tmp_path / "single" / "history.sqlite")
     rec = load_record(history, load_scenario(BENCHMARK), engine="threads")
     assert_same_traces(traces(summarize(rec)), traces(clean), atol=0.0)
+
+
+def test_a_standalone_router_says_and_logs_what_it_refuses(tmp_path):
+    """``wncs router`` audits (kernel.audit): a login without credentials and three puts on the
+    clock's tick with the reactor's login are refused, each a line of ``DIR/refused.log``; the
+    router's terminal says the first of each kind and, when it stops, the total."""
+    out = tmp_path / "run"
+    log = tmp_path / "router.log"
+    router = _router(out, log)
+    try:
+        run_file = out / "run.json"
+        wait_until(
+            lambda: run_file.exists() and json.loads(run_file.read_text()).get("endpoint"),
+            timeout=60,
+            what="the router's run.json",
+        )
+        info = json.loads(run_file.read_text())
+        with pytest.raises(ConfigError):
+            open_client(info["endpoint"])
+        security = out / SECURITY_DIR
+        intruder = open_client(info["endpoint"], settings=credentials_of(security, "reactor"))
+        tick = keys.full(info["run_id"], keys.tick())
+        for _ in range(3):
+            intruder.put(tick, b"forged")
+        refused = out / "refused.log"
+        wait_until(
+            lambda: refused.exists() and len(refused.read_text().splitlines()) == 4,
+            timeout=30,
+            what="four refused attempts in refused.log",
+        )
+        intruder.close()
+    finally:
+        _stop([router])
+    said = log.read_text()
+    assert f"refused attempts go to {refused}" in said
+    assert f"refused reactor: Put (ingress) on {tick} (1 so far)" in said
+    assert "(2 so far)" not in said  # the first of a kind, then the 10th, 100th, ...
+    assert "refused unauthenticated: login (Recv InitSyn. Expected extension.)" in said
+    assert "it refused 4 attempts" in said

@@ -122,7 +122,8 @@ def test_without_credentials_or_with_another_nodes_nothing_gets_through_the_rout
     level controller's and the clock's liveliness tokens (and drops them again, which would
     read as those nodes leaving); with the dashboard's it puts on the actuator key too. The
     router lets none of it through: no node even sees a message to drop, the run ends normally
-    and its history is the clean run's, bit for bit."""
+    and its history is the clean run's, bit for bit. The router counts each attempt, exactly
+    (the run's summary and ``refused.log``), and nothing in the clean run."""
     proc = subprocess.Popen(
         [*WNCS, "run", str(BENCHMARK), "--out", str(tmp_path), "--quiet"]
         + ["--engine", "threads", "--realtime", "1.0"],
@@ -202,7 +203,26 @@ def test_without_credentials_or_with_another_nodes_nothing_gets_through_the_rout
     assert proc.returncode == 0, err
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["messages"]["dropped_invalid"] == {}
+    # the router counted each attempt (kernel.audit), and nothing in the clean run
+    full = lambda rel: keys.full(run_id, rel)  # noqa: E731
+    attempts = {
+        (a["who"], a["what"], a["where"]): a["count"] for a in summary["router"]["attempts"]
+    }
+    assert attempts == {
+        ("reactor", "Put (ingress)", full(ACTUATOR)): 20,
+        ("reactor", "Put (ingress)", full(keys.tick())): 20,
+        ("reactor", "Put (ingress)", full(keys.done("level_controller"))): 20,
+        ("reactor", "Put (ingress)", full(keys.inject())): 20,
+        ("reactor", "Liveliness Token (ingress)", full(keys.alive("level_controller"))): 20,
+        ("reactor", "Liveliness Token (ingress)", full(keys.alive("clock"))): 20,
+        ("dashboard", "Put (ingress)", full(ACTUATOR)): 20,
+        ("unauthenticated", "login (Recv InitSyn. Expected extension.)", ""): 1,
+        ("unauthenticated", "login (Recv OpenSyn. Invalid password.)", ""): 1,
+    }
+    assert f"the router refused {summary['router']['refused']} attempts" in err
+    assert len((tmp_path / "refused.log").read_text().splitlines()) == 142
     clean_out, clean = clean_run
+    assert clean["router"] == {"refused": 0, "attempts": []}
     assert_same_traces(traces(summary), traces(clean), atol=0.0)
     assert messages_digest(tmp_path / "history.sqlite") == messages_digest(
         clean_out / "history.sqlite"

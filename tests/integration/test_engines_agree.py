@@ -18,6 +18,7 @@ from tests.integration.test_monitor_bus import shortened
 pytestmark = pytest.mark.slow
 
 _WALL = {"decision_time_s", "wall_s", "phases_s", "engine", "timing"}
+_BUS_ONLY = {"router"}  # what the bus's router refused: a direct run has no router
 
 
 def _without_wall_clock(x: Any) -> Any:
@@ -34,6 +35,9 @@ def _both(path, tmp_path):
         res = launch(path, tmp_path / engine, engine=engine)
         assert res.code == 0, res.error
         runs[engine] = _without_wall_clock(res.summary)
+        if engine == "threads":
+            assert res.summary["router"] == {"refused": 0, "attempts": []}
+        runs[engine] = {k: v for k, v in runs[engine].items() if k not in _BUS_ONLY}
     return runs["direct"], runs["threads"]
 
 
