@@ -1,8 +1,9 @@
 """The launcher: runs a scenario by one of three engines and leaves the run's artefacts in DIR.
 
 ``processes`` (default) starts one OS process per node with exactly the command
-``wncs node SCENARIO NAME --connect ENDPOINT --run-id ID`` around an embedded zenoh router;
-``threads`` runs the same nodes in this process, each with its own session on the same router;
+``wncs node SCENARIO NAME --connect ENDPOINT --run-id ID`` around the run's zenoh router, a
+process of its own that counts what it refuses (:mod:`kernel.router_process`); ``threads``
+runs the same nodes in this process, each with its own session on the same router;
 ``direct`` simulates without a bus (:mod:`runtime.direct`). DIR receives ``run.json`` (run id,
 router endpoint, node pids) at start, then ``history.sqlite`` (bus engines), ``summary.json``,
 one PNG per loop, and ``logs/`` with each process's log.
