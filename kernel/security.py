@@ -16,6 +16,10 @@ a token to a client only where a rule allows it (egress). Its own in-process ses
 filtered. What it does not check is *who* a message claims to be from (the envelope's ``src``)
 or its run and round: the nodes do that (:mod:`kernel.node`).
 
+A ``--tls`` run (``write_security(..., tls=True)``) adds its TLS material (:mod:`kernel.tls`): each
+credential file then holds its identity's client certificate too, and the settings open the
+session over mutual TLS (``transport/link/tls``).
+
 This module names no node kind: the grants come from the layer above (``runtime.security``).
 """
 
@@ -30,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import ConfigError
+from kernel.tls import CA_CERT, ClientTls, client_link, is_tls, router_link, write_tls
 
 __all__ = [
     "ROUTER",
@@ -81,6 +86,7 @@ class Credential:
 
     user: str
     password: str
+    tls: ClientTls | None = None  # a --tls run's: the CA, its certificate and key (PEM)
 
 
 def _rule(rid: str, flow: str, messages: list[str], key_exprs: tuple[str, ...]) -> dict[str, Any]:
@@ -160,19 +166,42 @@ def credential_path(directory: Path, name: str) -> Path:
 
 
 def write_security(
-    directory: Path, grants: Mapping[str, Grant], *, everything: str
+    directory: Path,
+    grants: Mapping[str, Grant],
+    *,
+    everything: str,
+    tls: bool = False,
+    tls_names: tuple[str, ...] = (),
+    ca_name: str = "wncs",
 ) -> dict[str, Credential]:
     """Create ``directory`` (mode 0700) with a fresh credential per identity of ``grants`` and
     for :data:`ROUTER` (``<name>.json``), the router's password dictionary and its access
-    control (all mode 0600); return the credentials by identity."""
+    control (all mode 0600); return the credentials by identity.
+
+    With ``tls``, also the run's TLS material (:func:`kernel.tls.write_tls`: its CA, named
+    ``ca_name``, and the routers' certificate for the loopback and ``tls_names``), and each
+    credential file holds its identity's client certificate and key and the CA's certificate:
+    it is all a node needs to connect."""
     directory.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(directory, 0o700)
+    names = sorted({*grants, ROUTER})
+    pairs = write_tls(directory, names, names=tls_names, ca_name=ca_name) if tls else {}
+    ca = (directory / CA_CERT).read_text() if tls else ""
     creds = {
-        name: Credential(name, secrets.token_urlsafe(24)) for name in sorted({*grants, ROUTER})
+        name: Credential(
+            name,
+            secrets.token_urlsafe(24),
+            ClientTls(ca, pairs[name].cert, pairs[name].key) if tls else None,
+        )
+        for name in names
     }
     for name, cred in creds.items():
-        text = json.dumps({"user": cred.user, "password": cred.password}) + "\n"
-        _write_private(credential_path(directory, name), text)
+        data: dict[str, Any] = {"user": cred.user, "password": cred.password}
+        if cred.tls is not None:
+            data["tls"] = {"ca": cred.tls.ca, "cert": cred.tls.cert, "key": cred.tls.key}
+        _write_private(
+            credential_path(directory, name), json.dumps(data, indent=1 if tls else None) + "\n"
+        )
     _write_private(
         directory / _DICTIONARY, "".join(f"{c.user}:{c.password}\n" for c in creds.values())
     )
@@ -185,13 +214,22 @@ def read_credential(path: Path) -> Credential:
     """The credential in ``path`` (``ConfigError`` naming the file when it cannot be read)."""
     try:
         data = json.loads(path.read_text())
-        return Credential(str(data["user"]), str(data["password"]))
-    except (OSError, ValueError, KeyError, TypeError) as err:
+        tls = data.get("tls")
+        return Credential(
+            str(data["user"]),
+            str(data["password"]),
+            None if tls is None else ClientTls(str(tls["ca"]), str(tls["cert"]), str(tls["key"])),
+        )
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
         raise ConfigError(f"credentials {path}: cannot read them: {err}") from err
 
 
 def router_settings(
-    directory: Path, *, zid: str | None = None, peers: tuple[str, ...] = ()
+    directory: Path,
+    *,
+    zid: str | None = None,
+    peers: tuple[str, ...] = (),
+    tls_names: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """The JSON5 settings of a router of the run whose security lives in ``directory``: its
     access control, the password dictionary it checks clients against, and its own credential
@@ -201,7 +239,11 @@ def router_settings(
     their zenoh id: zenoh 1.10's user-password authentication is one-way (the router that
     connects shows its credential; the one it connects to shows none), so to the joining router
     the other one has no user name (measured: a subject by user name alone passes nothing from
-    one router to the next). ``zid`` sets this router's own zenoh id (hex)."""
+    one router to the next). ``zid`` sets this router's own zenoh id (hex).
+
+    A ``--tls`` run's router (its directory holds TLS material) also gets its
+    ``transport/link/tls`` section (:func:`kernel.tls.router_link`: mutual TLS, a certificate
+    covering the loopback and ``tls_names``)."""
     try:
         acl = json.loads((directory / _ACL).read_text())
     except (OSError, ValueError) as err:
@@ -212,6 +254,8 @@ def router_settings(
         rules = [f"{ROUTER}/ingress", f"{ROUTER}/egress"]
         acl["policies"].append({"id": "router-peers", "rules": rules, "subjects": ["router-peers"]})
     settings: dict[str, Any] = {} if zid is None else {"id": zid}
+    if is_tls(directory):
+        settings["transport/link/tls"] = router_link(directory, tls_names)
     return {
         **settings,
         "access_control": acl,
@@ -224,5 +268,11 @@ def router_settings(
 
 
 def client_settings(cred: Credential) -> dict[str, Any]:
-    """The JSON5 settings of a client session that authenticates as ``cred``."""
-    return {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
+    """The JSON5 settings of a client session that authenticates as ``cred`` (and, a ``--tls``
+    run's credential, opens its TLS link with the certificate it holds)."""
+    settings: dict[str, Any] = {
+        "transport/auth/usrpwd": {"user": cred.user, "password": cred.password}
+    }
+    if cred.tls is not None:
+        settings["transport/link/tls"] = client_link(cred.tls)
+    return settings

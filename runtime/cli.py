@@ -91,6 +91,8 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "wncs router --scenario scenarios/tank_sim.yaml --listen tcp/127.0.0.1:7447 --out runs/mh",
         "wncs router --scenario scenarios/tank_sim.yaml --listen tcp/127.0.0.1:7448"
         " --connect tcp/127.0.0.1:7447 --out runs/mh",
+        "wncs router --scenario scenarios/tank_sim.yaml --listen tls/0.0.0.0:7447 --tls"
+        " --tls-name a.example.org --out runs/mh_tls",
     ),
     "report": ("wncs report runs/bench",),
     "analyze": (
@@ -252,6 +254,12 @@ def build_parser() -> argparse.ArgumentParser:
         "default each node authenticates and may publish only its own keys",
     )
     run.add_argument(
+        "--tls",
+        action="store_true",
+        help="every session over mutual TLS: a CA of the run, a certificate per node under "
+        "DIR/security (listen defaults to tls/127.0.0.1:0; refused with --insecure)",
+    )
+    run.add_argument(
         "--zenoh-config",
         default=None,
         metavar="FILE",
@@ -324,6 +332,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", required=True, metavar="DIR", help="the run's directory (run.json, security/)"
     )
     router.add_argument("--insecure", action="store_true", help="no credentials, no access control")
+    router.add_argument(
+        "--tls",
+        action="store_true",
+        help="the first router: make the run a TLS run (mutual TLS, a CA of the run and a "
+        "certificate per node under DIR/security; --listen tls/...); refused with --insecure",
+    )
+    router.add_argument(
+        "--tls-name",
+        action="append",
+        default=[],
+        metavar="HOST",
+        help="a DNS name or IP address nodes reach this router by, for its certificate "
+        "(repeatable; the loopback and the --listen host are always in it)",
+    )
     router.add_argument("--zenoh-config", default=None, metavar="FILE", help="zenoh config file")
     router.add_argument(
         "--run-id",
@@ -578,6 +600,7 @@ def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> i
         on_start=on_start,
         insecure=args.insecure,
         zenoh_config=args.zenoh_config,
+        tls=args.tls,
     )
     if result.code == INTERRUPTED:
         where = f"; partial results in {args.out}" if result.summary else ""
@@ -633,6 +656,8 @@ def _cmd_router(args: argparse.Namespace) -> int:
         zenoh_config=args.zenoh_config,
         overrides=tuple(args.set),
         run_id=args.run_id,
+        tls=args.tls,
+        tls_names=tuple(args.tls_name),
     )
 
 

@@ -42,7 +42,16 @@ from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
 from runtime.scenario import Scenario, load_scenario
-from runtime.security import LAUNCHER, SECURITY_ENV, credentials_of, warn_insecure
+from runtime.security import (
+    LAUNCHER,
+    SECURITY_ENV,
+    TLS_LISTEN,
+    check_tls,
+    credentials_of,
+    listen_names,
+    pick_endpoint,
+    warn_insecure,
+)
 from runtime.security import prepare as prepare_security
 
 __all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
@@ -166,6 +175,7 @@ def launch(
     on_start: Callable[[Path], None] | None = None,
     insecure: bool = False,
     zenoh_config: str | None = None,
+    tls: bool = False,
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
@@ -177,10 +187,17 @@ def launch(
     before the nodes start: ``wncs run --dashboard`` starts its dashboard there.
     A bus run is secure unless ``insecure`` (:mod:`runtime.security`: per-node credentials and
     the router's access control under ``out/security``); ``zenoh_config`` is a zenoh
-    configuration file the router starts from (else ``$ZENOH_CONFIG``).
+    configuration file the router starts from (else ``$ZENOH_CONFIG``). With ``tls`` every
+    session of the run goes over mutual TLS (:mod:`kernel.tls`; ``listen`` defaults to
+    ``tls/127.0.0.1:0``); ``tls`` with ``insecure`` is refused (``ConfigError``).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
+    if tls:
+        if engine == "direct":
+            raise ConfigError("--tls: the direct engine has no bus; use threads or processes")
+        listen = listen or TLS_LISTEN
+        check_tls(listen, tls=tls, insecure=insecure)
     scenario_path = Path(scenario_path)
     scenario = load_scenario(scenario_path, overrides=overrides)
     if seed is not None:
@@ -222,6 +239,7 @@ def launch(
         on_start=on_start,
         insecure=insecure,
         zenoh_config=zenoh_config,
+        tls=tls,
     )
 
 
@@ -260,10 +278,15 @@ def _launch_bus(
     on_start: Callable[[Path], None] | None,
     insecure: bool = False,
     zenoh_config: str | None = None,
+    tls: bool = False,
 ) -> RunResult:
     run_id = run_info["run_id"]
     listen = listen or DEFAULT_LISTEN
-    security = None if insecure else prepare_security(out, scenario, run_id)
+    security = (
+        None
+        if insecure
+        else prepare_security(out, scenario, run_id, tls=tls, tls_names=listen_names(listen))
+    )
     warn_insecure(listen, secure=security is not None)
     router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
         listen,
@@ -272,7 +295,7 @@ def _launch_bus(
         refused_log=None if security is None else out / REFUSED_LOG,
     )
     locators = router.locators
-    endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
+    endpoint = pick_endpoint(locators, listen)
     try:  # the launcher's own session: it shows the run's progress
         watch = open_client(
             endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
@@ -282,6 +305,7 @@ def _launch_bus(
         raise
     run_info["endpoint"] = endpoint
     run_info["secure"] = security is not None
+    run_info["tls"] = tls
     previous = os.environ.pop(SECURITY_ENV, None)
     if security is not None:  # node processes find their credentials here (wncs node)
         os.environ[SECURITY_ENV] = str(security.resolve())

@@ -33,7 +33,7 @@ from kernel.bus import open_router
 from kernel.security import SECURITY_DIR, router_settings
 from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.scenario import load_scenario
-from runtime.security import prepare, warn_insecure
+from runtime.security import check_tls, listen_names, pick_endpoint, prepare, warn_insecure
 
 __all__ = ["serve_router", "router_run"]
 
@@ -45,9 +45,12 @@ def router_run(
     insecure: bool = False,
     overrides: tuple[str, ...] = (),
     run_id: str | None = None,
+    tls: bool = False,
+    tls_names: tuple[str, ...] = (),
 ) -> tuple[dict[str, Any], Path | None]:
     """The run a router serves: ``out/run.json`` if another router of it wrote one (with its
-    security), else a new run written there, with id ``run_id`` (default: a random one).
+    security), else a new run written there, with id ``run_id`` (default: a random one), and
+    with ``tls`` its TLS material (the routers' certificate covering ``tls_names``).
     Returns the run's information and its security directory (``None``: insecure)."""
     run_file = out / RUN_FILE
     if run_id is not None:
@@ -69,17 +72,23 @@ def router_run(
         security = out / SECURITY_DIR
         if info.get("secure", True) and not security.is_dir():
             raise ConfigError(f"{security}: the run is secure, and its security is not here")
+        if tls and not info.get("tls", False):
+            raise ConfigError(
+                f"--tls: run {info['run_id']} ({run_file}) is not a TLS run; its routers "
+                "listen on tcp/"
+            )
         return info, (security if info.get("secure", True) else None)
     scenario = load_scenario(scenario_path, overrides=list(overrides))
     out.mkdir(parents=True, exist_ok=True)
     run_id = run_id or "r" + secrets.token_hex(5)
-    security = None if insecure else prepare(out, scenario, run_id)
+    security = None if insecure else prepare(out, scenario, run_id, tls=tls, tls_names=tls_names)
     info = {
         "run_id": run_id,
         "engine": "routers",
         "scenario": str(Path(scenario_path).resolve()),
         "seed": scenario.seed,
         "secure": security is not None,
+        "tls": tls,
         "endpoint": None,
         "routers": [],
     }
@@ -98,6 +107,8 @@ def serve_router(
     stream: TextIO | None = None,
     stop: threading.Event | None = None,
     run_id: str | None = None,
+    tls: bool = False,
+    tls_names: tuple[str, ...] = (),
 ) -> int:
     """Open the router, record it in ``out/run.json``, and serve until ``stop`` is set or a
     SIGINT/SIGTERM arrives; return the exit code (0).
@@ -105,10 +116,25 @@ def serve_router(
     A secure router audits (:mod:`kernel.audit`): it appends each attempt it refuses to
     ``out/refused.log``, says the first of each kind (and the 10th, 100th, ...) on ``stream``,
     and the total when it stops. It can only if zenoh's logging has not started yet in this
-    process (``wncs router`` is a process of its own); otherwise it says it does not count."""
+    process (``wncs router`` is a process of its own); otherwise it says it does not count.
+
+    A TLS run's router (``tls``, or a run whose ``run.json`` says ``"tls": true``) listens on a
+    ``tls/`` endpoint with mutual TLS (:mod:`kernel.tls`); its certificate covers the loopback,
+    the host ``listen`` names and ``tls_names`` (``--tls-name``: the names nodes on other hosts
+    reach it by)."""
+    check_tls(listen, tls=tls, insecure=insecure)
+    names = (*listen_names(listen), *tls_names)
     info, security = router_run(
-        scenario_path, out, insecure=insecure, overrides=overrides, run_id=run_id
+        scenario_path,
+        out,
+        insecure=insecure,
+        overrides=overrides,
+        run_id=run_id,
+        tls=tls,
+        tls_names=names,
     )
+    tls = bool(info.get("tls", False))
+    check_tls(listen, tls=tls, insecure=security is None)
     said: list[TextIO] = []  # where refusals are said, once known
 
     def say_refused(attempt: Refused, count: int) -> None:
@@ -136,10 +162,14 @@ def serve_router(
     router, locators = open_router(
         listen,
         connect=connect,
-        settings=None if security is None else router_settings(security, zid=zid, peers=peers),
+        settings=(
+            None
+            if security is None
+            else router_settings(security, zid=zid, peers=peers, tls_names=names)
+        ),
         config_file=zenoh_config,
     )
-    endpoint = next((loc for loc in locators if loc.startswith("tcp/")), locators[0])
+    endpoint = pick_endpoint(locators, listen)
     info["endpoint"] = info.get("endpoint") or endpoint
     info.setdefault("routers", []).append({"endpoint": endpoint, "zid": zid})
     tmp = out / (RUN_FILE + ".tmp")
@@ -153,7 +183,8 @@ def serve_router(
         )
     )
     stream.write(
-        f"wncs router: run {info['run_id']} ({'secure' if security else 'INSECURE'}) on "
+        f"wncs router: run {info['run_id']} "
+        f"({('secure, TLS' if tls else 'secure') if security else 'INSECURE'}) on "
         f"{endpoint}{' joined to ' + ', '.join(connect) if connect else ''}{audit}\n"
     )
     stream.flush()

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from bus_schemas import keys
+from core.errors import ConfigError
 from kernel.security import (
     SECURITY_DIR,
     Grant,
@@ -47,6 +48,10 @@ __all__ = [
     "credentials_of",
     "warn_insecure",
     "is_loopback",
+    "TLS_LISTEN",
+    "check_tls",
+    "listen_names",
+    "pick_endpoint",
 ]
 
 SECURITY_ENV = "WNCS_SECURITY"
@@ -96,12 +101,62 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
     return out
 
 
-def prepare(out: Path, scenario: Scenario, run_id: str) -> Path:
+def prepare(
+    out: Path,
+    scenario: Scenario,
+    run_id: str,
+    *,
+    tls: bool = False,
+    tls_names: tuple[str, ...] = (),
+) -> Path:
     """Write run ``run_id``'s credentials and access control under ``out/security``; return
-    that directory."""
+    that directory. With ``tls``, its TLS material too (:mod:`kernel.tls`: a CA of the run, the
+    routers' certificate for the loopback and ``tls_names``, a client certificate per
+    identity)."""
     directory = out / SECURITY_DIR
-    write_security(directory, grants(scenario, run_id), everything=keys.full(run_id, "**"))
+    write_security(
+        directory,
+        grants(scenario, run_id),
+        everything=keys.full(run_id, "**"),
+        tls=tls,
+        tls_names=tls_names,
+        ca_name=f"wncs run {run_id}",
+    )
     return directory
+
+
+TLS_LISTEN = "tls/127.0.0.1:0"
+"""``--tls``'s default endpoint: loopback, port chosen by the OS."""
+
+
+def check_tls(listen: str, *, tls: bool, insecure: bool) -> None:
+    """Refuse (``ConfigError``) ``--tls`` with ``--insecure`` (TLS here rides on the run's
+    credentials) or with a listen endpoint that is not ``tls/``."""
+    if not tls:
+        return
+    if insecure:
+        raise ConfigError(
+            "--tls with --insecure: a TLS run is a secure run (its certificates are made with its "
+            "credentials); drop --insecure"
+        )
+    if not listen.startswith("tls/"):
+        raise ConfigError(f"--tls: --listen {listen} is not a tls/ endpoint (e.g. {TLS_LISTEN})")
+
+
+def listen_names(listen: str) -> tuple[str, ...]:
+    """The host a listen endpoint names, for the routers' certificate: none for a wildcard
+    (``0.0.0.0``, ``[::]``: give the host's names with ``--tls-name``)."""
+    host = listen.partition("/")[2].rpartition(":")[0].strip("[]")
+    if not host or host in ("0.0.0.0", "::"):
+        return ()
+    return (host,)
+
+
+def pick_endpoint(locators: list[str], listen: str) -> str:
+    """The locator a run's nodes connect to: the first of the listen endpoint's protocol
+    (``tcp/``, ``tls/``)."""
+    proto = listen.partition("/")[0] + "/"
+    return next((loc for loc in locators if loc.startswith(proto)), locators[0])
 
 
 def credentials_of(directory: Path, name: str) -> dict[str, Any]:
