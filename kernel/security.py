@@ -99,10 +99,24 @@ def _rule(rid: str, flow: str, messages: list[str], key_exprs: tuple[str, ...]) 
     }
 
 
-def access_control(grants: Mapping[str, Grant], *, everything: str) -> dict[str, Any]:
+def access_control(
+    grants: Mapping[str, Grant], *, everything: str, by_certificate: bool = False
+) -> dict[str, Any]:
     """Zenoh's ``access_control`` section for ``grants`` (identity -> grant): default deny, one
     subject per identity (its user name), one rule per thing it may do; routers (identity
-    :data:`ROUTER`) may do everything on ``everything`` (the run's ``wncs/<run>/**``)."""
+    :data:`ROUTER`) may do everything on ``everything`` (the run's ``wncs/<run>/**``).
+
+    ``by_certificate`` (a ``--tls`` run) makes each subject the user name *and* the common name
+    of the TLS client certificate (zenoh ands a subject's fields): an identity's grants then
+    need its own certificate as well as its own password (measured on loopback: a client with
+    one identity's password and another's certificate gets nothing through)."""
+
+    def subject(name: str) -> dict[str, Any]:
+        fields: dict[str, Any] = {"id": name, "usernames": [name]}
+        if by_certificate:
+            fields["cert_common_names"] = [name]
+        return fields
+
     rules: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
     subjects: list[dict[str, Any]] = []
@@ -124,7 +138,7 @@ def access_control(grants: Mapping[str, Grant], *, everything: str) -> dict[str,
         if not mine:
             continue
         rules += mine
-        subjects.append({"id": name, "usernames": [name]})
+        subjects.append(subject(name))
         policies.append({"id": name, "rules": [r["id"] for r in mine], "subjects": [name]})
     every = [
         "put",
@@ -139,7 +153,7 @@ def access_control(grants: Mapping[str, Grant], *, everything: str) -> dict[str,
     ]
     for flow in ("ingress", "egress"):
         rules.append(_rule(f"{ROUTER}/{flow}", flow, every, (everything,)))
-    subjects.append({"id": ROUTER, "usernames": [ROUTER]})
+    subjects.append(subject(ROUTER))
     policies.append(
         {"id": ROUTER, "rules": [f"{ROUTER}/ingress", f"{ROUTER}/egress"], "subjects": [ROUTER]}
     )
@@ -205,7 +219,7 @@ def write_security(
     _write_private(
         directory / _DICTIONARY, "".join(f"{c.user}:{c.password}\n" for c in creds.values())
     )
-    acl = access_control(grants, everything=everything)
+    acl = access_control(grants, everything=everything, by_certificate=tls)
     _write_private(directory / _ACL, json.dumps(acl, indent=1) + "\n")
     return creds
 

@@ -4,7 +4,9 @@ certificate per identity (``wncs run --tls``, ``wncs router --tls``).
 Zenoh's ``tls/`` links (rustls, ring provider) encrypt the traffic between a node and a router,
 and between routers; the user-password login of :mod:`kernel.security` still runs inside them.
 With ``enable_mtls`` the router takes a TLS connection only from a client that shows a
-certificate the run's CA signed, so a client needs both its certificate and its password.
+certificate the run's CA signed, so a client needs both its certificate and its password; and
+the access control of a TLS run (:func:`kernel.security.access_control`, ``by_certificate``)
+names each identity by both, so they must be the same identity's.
 
 What this module makes, with ``cryptography`` (keys EC P-256, signatures ECDSA-SHA256; zenoh
 1.10's rustls takes Ed25519 too, measured, but P-256 is what every TLS tool reads):

@@ -30,6 +30,7 @@ from runtime.security import (
     SECURITY_ENV,
     TLS_LISTEN,
     credentials_of,
+    grants,
     login_of,
     pick_endpoint,
     prepare,
@@ -112,6 +113,46 @@ def test_a_tls_router_takes_the_right_client_and_refuses_the_others(tls_router):
         with pytest.raises(ConfigError):
             open_client(where, settings=settings)
             pytest.fail(f"{what}: let in")
+
+
+def test_an_identitys_grants_need_its_own_certificate(tls_router):
+    """The reactor's password with another identity's certificate (the run's CA signed it) logs
+    in, and gets nothing through: the access control's subjects are user name and certificate
+    CN together. The reactor's own pair gets the same put through."""
+    out, endpoint = tls_router
+    security = out / SECURITY_DIR
+    reactor = read_credential(security / "reactor.json")
+    other = read_credential(security / "inject.json")
+    assert reactor.tls is not None and other.tls is not None
+    key = keys.full(RUN, "plant/reactor/state")
+    assert key in grants(load_scenario(BENCHMARK), RUN)["reactor"].puts
+    historian = open_client(endpoint, settings=credentials_of(security, "historian"))
+    got: list[bytes] = []
+    heard = threading.Event()
+
+    def on_put(sample) -> None:
+        got.append(sample.payload.to_bytes())
+        if sample.payload.to_bytes() == b"own":
+            heard.set()
+
+    sub = historian.declare_subscriber(key, on_put)
+    try:
+        mixed = Credential(reactor.user, reactor.password, other.tls)
+        forger = open_client(endpoint, settings=client_settings(mixed))
+        for _ in range(20):
+            forger.put(key, b"mixed")
+        forger.close()
+        own = open_client(endpoint, settings=client_settings(reactor))
+        for _ in range(300):
+            own.put(key, b"own")
+            if heard.wait(0.1):
+                break
+        own.close()
+        assert heard.is_set()
+        assert b"mixed" not in got
+    finally:
+        sub.undeclare()
+        historian.close()
 
 
 def test_inject_and_the_dashboard_log_in_over_tls(tls_router):

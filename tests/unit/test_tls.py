@@ -197,6 +197,18 @@ def test_a_tls_runs_security_files_are_private_and_credentials_carry_the_certifi
     zenoh_config(BusConfig(mode="router", listen=("tls/127.0.0.1:0",), settings=settings))
 
 
+def test_a_tls_runs_access_control_names_each_identity_by_password_and_certificate(tmp_path):
+    directory = prepare(tmp_path, load_scenario(BENCHMARK), "rtls", tls=True)
+    acl = json.loads((directory / "access_control.json").read_text())
+    subjects = {s["id"]: s for s in acl["subjects"]}
+    assert "reactor" in subjects and "router" in subjects
+    for name, subject in subjects.items():
+        assert subject["usernames"] == [name] and subject["cert_common_names"] == [name]
+    plain = prepare(tmp_path / "plain", load_scenario(BENCHMARK), "rplain")
+    acl = json.loads((plain / "access_control.json").read_text())
+    assert all("cert_common_names" not in s for s in acl["subjects"])
+
+
 def test_a_plain_secure_run_is_unchanged(tmp_path):
     directory = prepare(tmp_path, load_scenario(BENCHMARK), "rplain")
     assert not (directory / CA_CERT).exists() and not (directory / ROUTER_KEY).exists()
