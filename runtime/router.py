@@ -21,6 +21,7 @@ import json
 import math
 import secrets
 import signal
+import socket
 import sys
 import threading
 from pathlib import Path
@@ -35,7 +36,7 @@ from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.scenario import load_scenario
 from runtime.security import check_tls, listen_names, pick_endpoint, prepare, warn_insecure
 
-__all__ = ["serve_router", "router_run"]
+__all__ = ["serve_router", "router_run", "router_at"]
 
 
 def router_run(
@@ -95,6 +96,35 @@ def router_run(
     return info, security
 
 
+def _split(endpoint: str) -> tuple[str, str, str]:
+    """``tls/host:7447`` -> (``tls``, ``host``, ``7447``); brackets off an IPv6 address."""
+    proto, _, rest = endpoint.partition("/")
+    host, _, port = rest.rpartition(":")
+    return proto, host.strip("[]"), port.partition("#")[0]
+
+
+def router_at(endpoint: str, routers: list[dict[str, Any]]) -> str | None:
+    """The zenoh id of the run's router that ``endpoint`` (a ``--connect``) reaches, from
+    ``run.json``'s ``routers``: one whose endpoint or locators it names, else one whose
+    locators have an address ``endpoint``'s host resolves to, on the same protocol and port (a
+    router listening on ``0.0.0.0`` records the host's addresses; another host names it by
+    its DNS name); ``None`` if none does."""
+    for r in routers:
+        if endpoint == r["endpoint"] or endpoint in r.get("locators", []):
+            return str(r["zid"])
+    proto, host, port = _split(endpoint)
+    try:
+        addresses = {str(ai[4][0]) for ai in socket.getaddrinfo(host, port or None)}
+    except (OSError, UnicodeError):
+        return None
+    for r in routers:
+        for loc in (r["endpoint"], *r.get("locators", [])):
+            p2, h2, port2 = _split(loc)
+            if p2 == proto and port2 == port and h2 in addresses:
+                return str(r["zid"])
+    return None
+
+
 def serve_router(
     scenario_path: str,
     out: Path,
@@ -151,14 +181,16 @@ def serve_router(
     said.append(stream)
     warn_insecure(listen, secure=security is not None)
     zid = "%x" % (secrets.randbits(124) | 1 << 124)  # 32 hex digits, no leading 0 (zenoh)
-    known = {r["endpoint"]: r["zid"] for r in info.get("routers", [])}
-    unknown = [c for c in connect if c not in known]
+    routers = info.get("routers", [])
+    found = {c: router_at(c, routers) for c in connect}
+    unknown = [c for c, z in found.items() if z is None]
     if security is not None and unknown:
+        known = sorted(r["endpoint"] for r in routers)
         raise ConfigError(
             f"--connect {', '.join(unknown)}: not a router of run {info['run_id']} "
-            f"(its routers: {sorted(known) or 'none yet'})"
+            f"(its routers: {known or 'none yet'})"
         )
-    peers = tuple(known[c] for c in connect if c in known)
+    peers = tuple(z for z in found.values() if z is not None)
     router, locators = open_router(
         listen,
         connect=connect,
@@ -171,7 +203,9 @@ def serve_router(
     )
     endpoint = pick_endpoint(locators, listen)
     info["endpoint"] = info.get("endpoint") or endpoint
-    info.setdefault("routers", []).append({"endpoint": endpoint, "zid": zid})
+    info.setdefault("routers", []).append(
+        {"endpoint": endpoint, "zid": zid, "locators": list(locators)}
+    )
     tmp = out / (RUN_FILE + ".tmp")
     tmp.write_text(json.dumps(info, indent=1) + "\n")
     tmp.replace(out / RUN_FILE)

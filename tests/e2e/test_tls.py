@@ -190,7 +190,9 @@ def _router(out: Path, log: Path, *extra: str) -> subprocess.Popen:
 
 def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path, plain_run):
     """``wncs router --tls`` makes the run; a second router joins it over TLS (mutual: it shows
-    the routers' certificate) with a name of its own (``--tls-name``, so it serves a certificate
+    the routers' certificate), reaching it by a host name (``localhost``: its certificate must
+    cover it, and ``run.json`` finds the router by the address it resolves to), with a name of
+    its own (``--tls-name``, so it serves a certificate
     it made from the run's CA); each node is a ``wncs node`` process with ``WNCS_SECURITY``."""
     out = tmp_path / "chained"
     logs = tmp_path / "logs"
@@ -209,8 +211,9 @@ def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path,
         wait_until(lambda: len(routers()) == 1, timeout=60, what="the first router")
         first = routers()[0]["endpoint"]
         assert first.startswith("tls/127.0.0.1:")
+        by_name = first.replace("127.0.0.1", "localhost")  # a DNS name of the first one's host
         procs.append(
-            _router(out, logs / "router_b.log", "--connect", first, "--tls-name", "b.wncs.test")
+            _router(out, logs / "router_b.log", "--connect", by_name, "--tls-name", "b.wncs.test")
         )
         wait_until(lambda: len(routers()) == 2, timeout=60, what="the second router")
         info = json.loads(run_file.read_text())

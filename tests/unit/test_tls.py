@@ -44,6 +44,7 @@ from kernel.tls import (
     router_names,
     write_tls,
 )
+from runtime.router import router_at
 from runtime.scenario import load_scenario
 from runtime.security import check_tls, listen_names, pick_endpoint, prepare
 from tests.conftest import BENCHMARK
@@ -265,3 +266,21 @@ def test_tls_options_are_checked():
     locators = ["tcp/127.0.0.1:1", "tls/127.0.0.1:2"]
     assert pick_endpoint(locators, "tls/127.0.0.1:0") == "tls/127.0.0.1:2"
     assert pick_endpoint(locators, "tcp/127.0.0.1:0") == "tcp/127.0.0.1:1"
+
+
+def test_a_router_of_the_run_is_found_by_any_name_of_its_host():
+    """``wncs router --connect tls/A:7447`` finds the run's router that listens there, whether
+    ``run.json`` recorded it by that endpoint, by one of its locators, or by an address ``A``
+    resolves to (``localhost`` resolves to the loopback on every host)."""
+    routers = [
+        {"endpoint": "tls/127.0.0.1:7447", "zid": "a1", "locators": ["tls/127.0.0.1:7447"]},
+        {"endpoint": "tls/10.9.8.7:7448", "zid": "b2", "locators": ["tls/10.9.8.7:7448"]},
+        {"endpoint": "tcp/10.9.8.6:7449", "zid": "c3"},  # written before routers had locators
+    ]
+    assert router_at("tls/127.0.0.1:7447", routers) == "a1"
+    assert router_at("tls/localhost:7447", routers) == "a1"
+    assert router_at("tls/10.9.8.7:7448", routers) == "b2"
+    assert router_at("tcp/10.9.8.6:7449", routers) == "c3"
+    assert router_at("tls/localhost:7448", routers) is None  # no router of the run there
+    assert router_at("tcp/localhost:7447", routers) is None  # another protocol
+    assert router_at("tls/no-such-host.invalid:7447", routers) is None
