@@ -295,7 +295,7 @@ def _launch_bus(
         refused_log=None if security is None else out / REFUSED_LOG,
     )
     locators = router.locators
-    endpoint = pick_endpoint(locators, listen)
+    endpoint = pick_endpoint(locators, listen, listen_names(listen))
     try:  # the launcher's own session: it shows the run's progress
         watch = open_client(
             endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)

@@ -201,7 +201,7 @@ def serve_router(
         ),
         config_file=zenoh_config,
     )
-    endpoint = pick_endpoint(locators, listen)
+    endpoint = pick_endpoint(locators, listen, names)
     info["endpoint"] = info.get("endpoint") or endpoint
     info.setdefault("routers", []).append(
         {"endpoint": endpoint, "zid": zid, "locators": list(locators)}

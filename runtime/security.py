@@ -34,6 +34,7 @@ from kernel.security import (
     read_credential,
     write_security,
 )
+from kernel.tls import name_of_endpoint, router_names
 from runtime.ownership import CLOCK, publishers, readers
 from runtime.scenario import Scenario
 
@@ -152,11 +153,25 @@ def listen_names(listen: str) -> tuple[str, ...]:
     return (host,)
 
 
-def pick_endpoint(locators: list[str], listen: str) -> str:
-    """The locator a run's nodes connect to: the first of the listen endpoint's protocol
-    (``tcp/``, ``tls/``)."""
+def pick_endpoint(locators: list[str], listen: str, names: tuple[str, ...] = ()) -> str:
+    """The endpoint a run's nodes connect to: the first locator of the listen endpoint's
+    protocol (``tcp/``, ``tls/``).
+
+    A TLS client checks the router's name, so for ``tls/`` the endpoint must name a host the
+    routers' certificate covers (:func:`kernel.tls.router_names` of ``names``): the first such
+    locator; else (a router on ``0.0.0.0`` reports the host's addresses, which the certificate
+    need not list) the first of ``names`` with the router's port, or the loopback address."""
     proto = listen.partition("/")[0] + "/"
-    return next((loc for loc in locators if loc.startswith(proto)), locators[0])
+    first = next((loc for loc in locators if loc.startswith(proto)), locators[0])
+    if proto != "tls/":
+        return first
+    covered = router_names(names)
+    for loc in locators:
+        if loc.startswith(proto) and name_of_endpoint(loc) in covered:
+            return loc
+    port = first.rpartition(":")[2]
+    host = names[0].strip("[]") if names else "127.0.0.1"
+    return f"tls/{'[' + host + ']' if ':' in host else host}:{port}"
 
 
 def credentials_of(directory: Path, name: str) -> dict[str, Any]:

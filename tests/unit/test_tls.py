@@ -266,6 +266,14 @@ def test_tls_options_are_checked():
     locators = ["tcp/127.0.0.1:1", "tls/127.0.0.1:2"]
     assert pick_endpoint(locators, "tls/127.0.0.1:0") == "tls/127.0.0.1:2"
     assert pick_endpoint(locators, "tcp/127.0.0.1:0") == "tcp/127.0.0.1:1"
+    # a router on 0.0.0.0 reports the host's addresses: a TLS endpoint names what its certificate
+    # covers (the loopback, or the first name given); plain tcp keeps the first locator
+    wide = ["tls/192.0.2.2:7447", "tls/198.51.100.7:7447"]
+    assert pick_endpoint(wide, "tls/0.0.0.0:7447") == "tls/127.0.0.1:7447"
+    assert pick_endpoint(wide, "tls/0.0.0.0:7447", ("a.example.org",)) == "tls/a.example.org:7447"
+    assert pick_endpoint(wide, "tls/0.0.0.0:7447", ("198.51.100.7",)) == "tls/198.51.100.7:7447"
+    assert pick_endpoint(wide, "tls/[::]:7447", ("fe80::1",)) == "tls/[fe80::1]:7447"
+    assert pick_endpoint(["tcp/192.0.2.2:1"], "tcp/0.0.0.0:1") == "tcp/192.0.2.2:1"
 
 
 def test_a_router_of_the_run_is_found_by_any_name_of_its_host():
