@@ -47,6 +47,8 @@ __all__ = [
     "wncsca_rates",
     "wncsca_timing",
     "monitor_assessment",
+    "DATA_ROOTS",
+    "data_all",
 ]
 
 PREFIX = "wncs"
@@ -106,6 +108,18 @@ def relative(run: str, key: str) -> str:
     if not key.startswith(prefix):
         raise ValueError(f"key {key!r} is not under {prefix!r}")
     return key[len(prefix) :]
+
+
+DATA_ROOTS = ("events", "link", "loop", "monitor", "net", "ops", "plant", "wncsca")
+"""The first chunk of every data key. The rest of a run's keys are the clock's (``clock/...``:
+ticks, Dones, the stop) and liveliness tokens (``alive/...``): control, not data."""
+
+
+def data_all() -> tuple[str, ...]:
+    """Every data key of a run, one key expression per root: what the historian records. (``**``
+    would also bring it every tick addressed to a node and every node's Done, each a wake-up of
+    its thread only to be dropped: about a third of what it received on the JCSTR benchmark.)"""
+    return tuple(f"{root}/**" for root in DATA_ROOTS)
 
 
 def tick() -> str:

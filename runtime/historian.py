@@ -14,7 +14,7 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
-from bus_schemas import Stop, Tick, codec
+from bus_schemas import Stop, Tick, codec, keys
 from core.behaviour import Behaviour, Incoming
 from kernel.node import BusNode, NodeContext
 from runtime import history
@@ -23,12 +23,14 @@ from runtime.artefacts import HISTORY_FILE
 __all__ = ["Recorder", "HistorianNode", "HISTORY_FILE"]
 
 class Recorder(Behaviour):
-    """Writes every message it is handed (subscribed to ``**``) into an open history database."""
+    """Writes every data message it is handed (subscribed to every data key,
+    :func:`bus_schemas.keys.data_all`) into an open history database."""
 
     def __init__(self, name: str, db: sqlite3.Connection) -> None:
         super().__init__(name)
         self.db = db
-        self.subscribe("**", None, self._record)
+        for pattern in keys.data_all():
+            self.subscribe(pattern, None, self._record)
 
     def _record(self, env: Incoming, body: dict[str, Any]) -> None:
         self.db.execute(

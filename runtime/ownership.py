@@ -92,5 +92,5 @@ def readers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
         out[agent] |= {"net/*", "ops/*", "ops/setpoint/*", "loop/*/meas"}
     for monitor in scenario.nodes_of(MonitorNodeConfig):
         out[monitor] |= {"plant/**", "loop/**", "ops/**"}
-    out["historian"].add("**")
+    out["historian"] |= set(keys.data_all())
     return {n: tuple(sorted(p)) for n, p in sorted(out.items())}
