@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from math import inf
 from typing import Any
 
 import numpy as np
@@ -68,6 +69,9 @@ class PlantSpec:
         Output -> standard deviation of its additive measurement noise.
     rngs : mapping
         Sampled output -> its seeded generator (the node owns it; drawn from only with noise).
+    input_range : tuple of (float, float)
+        Each input's actuator range, in ``input_names`` order: a command beyond it is held at
+        the limit (saturation); ``(-inf, inf)`` for no limit.
     """
 
     model: Any
@@ -79,6 +83,7 @@ class PlantSpec:
     sensors: Mapping[str, int]
     noise: Mapping[str, float]
     rngs: Mapping[str, np.random.Generator]
+    input_range: tuple[tuple[float, float], ...] = ()
 
 
 class PlantBehaviour(Behaviour):
@@ -230,15 +235,17 @@ class PlantBehaviour(Behaviour):
 
     def _actuator(self, input_name: str) -> Any:
         index = self.model.input_names.index(input_name)
+        low, high = self.spec.input_range[index] if self.spec.input_range else (-inf, inf)
 
         def apply(env: RawEnvelope, move: Move) -> None:
+            value = low if move.value < low else (high if move.value > high else move.value)
             self._integrate_to(self.now)
             before = float(self.u[index])
             self._applied.append(
                 _Applied(
                     self.current_key,
                     index,
-                    move.value,
+                    value,
                     before,
                     self.t_state,
                     self.x.copy(),
@@ -247,6 +254,6 @@ class PlantBehaviour(Behaviour):
                 )
             )
             self._in_force[index] = self._applied[-1]
-            self.u[index] = move.value
+            self.u[index] = value
 
         return apply

@@ -212,6 +212,7 @@ def _jcstr_unit(k: int, net: str, sensor_nodes: tuple[str, str]) -> tuple[dict, 
             "params": dict(_JCSTR),
             "x0": {"H": 0.66, "T": 50.0, "T_j": 143.0},
             "u0": {"F_out": 9.69, "F_jin": 0.3501},
+            "input_range": {"F_out": [0.0, math.inf], "F_jin": [0.0, math.inf]},  # valves
             "monitor_period": 0.05,
         }
     }

@@ -162,6 +162,12 @@ class PlantNodeConfig(BaseModel):
         description="sensor signal -> standard deviation of additive Gaussian measurement noise; "
         "each signal draws from its own generator seeded from the scenario seed and its name",
     )
+    input_range: dict[str, tuple[float, float]] = Field(
+        default_factory=dict,
+        description="input -> [low, high], the actuator's physical range (a valve cannot pass "
+        "a negative flow: [0, .inf]); a command beyond it is held at the limit it passes, as "
+        "the actuator saturates. Inputs not named have no limit.",
+    )
 
     @model_validator(mode="after")
     def _check_model(self) -> PlantNodeConfig:
@@ -189,6 +195,18 @@ class PlantNodeConfig(BaseModel):
         ):
             if set(given) != set(names):
                 raise ValueError(f"{field}: expected exactly {list(names)}, got {sorted(given)}")
+        for name, (low, high) in self.input_range.items():
+            if name not in plant.input_names:
+                raise ValueError(
+                    f"input_range.{name}: not an input of {self.model!r} "
+                    f"(inputs: {list(plant.input_names)})"
+                )
+            if not low < high:
+                raise ValueError(f"input_range.{name}: low ({low}) must be below high ({high})")
+            if not low <= self.u0[name] <= high:
+                raise ValueError(
+                    f"u0.{name}: {self.u0[name]} is outside input_range.{name} [{low}, {high}]"
+                )
         return self
 
     def build(self) -> Any:
@@ -1050,7 +1068,14 @@ def _format_error(source: str, err: ValidationError, text: str | None = None) ->
 
 
 _INFINITE_OK = frozenset({"u_min", "u_max"})
-"""Fields where an infinite value means "no limit" (actuator limits)."""
+"""Fields where an infinite value means "no limit" (actuator limits; and the bounds of a plant
+node's ``input_range``)."""
+
+
+def _infinite_ok(path: tuple[Any, ...]) -> bool:
+    return bool(path) and (
+        path[-1] in _INFINITE_OK or (len(path) >= 3 and path[-3] == "input_range")
+    )
 
 
 def _non_finite(data: Any, path: tuple[Any, ...] = ()) -> Iterator[tuple[tuple[Any, ...], float]]:
@@ -1062,7 +1087,7 @@ def _non_finite(data: Any, path: tuple[Any, ...] = ()) -> Iterator[tuple[tuple[A
         for i, value in enumerate(data):
             yield from _non_finite(value, (*path, i))
     elif isinstance(data, float) and not math.isfinite(data):
-        if math.isnan(data) or not path or path[-1] not in _INFINITE_OK:
+        if math.isnan(data) or not _infinite_ok(path):
             yield path, data
 
 

@@ -14,6 +14,7 @@ a node's spec to its behaviour. Not cut yet: two cores still read the scenario t
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 from agents.monitor.behaviour import MonitorSpec
@@ -60,6 +61,7 @@ def plant_spec(scenario: Scenario, name: str) -> PlantSpec:
         sensors=sensors,
         noise=dict(cfg.noise),
         rngs={s: scenario.sensor_rng(name, s) for s in sensors},
+        input_range=tuple(cfg.input_range.get(i, (-math.inf, math.inf)) for i in model.input_names),
     )
 
 

@@ -31,7 +31,7 @@ def _refused(capsys, argv, *expected):
 @pytest.mark.parametrize(
     ("override", "message"),
     [
-        ("loops.level.setpoint=.nan", "line 52: loops.level.setpoint: nan is not a finite number"),
+        ("loops.level.setpoint=.nan", "line 53: loops.level.setpoint: nan is not a finite number"),
         ("nodes.reactor.x0.H=.inf", "nodes.reactor.x0.H: inf is not a finite number"),
         ("nodes.level_controller.law.Kp=.nan", "nodes.level_controller.law.Kp: nan is not"),
         ("setpoints.0.value=-.inf", "setpoints.0.value: -inf is not a finite number"),

@@ -27,10 +27,17 @@ class _Env(NamedTuple):
     t: int
 
 
-def _run(command: float | None, end: int) -> tuple[list, object]:
+UNLIMITED = [
+    "nodes.reactor.input_range={}"
+]  # no valve limits: any finite command reaches the model
+
+
+def _run(command: float | None, end: int, overrides: list[str] = UNLIMITED) -> tuple[list, object]:
     """The reactor alone, round by round at its own timers (and at ``T_COMMAND``, where the
-    command arrives), to ``end`` ticks: its outputs and next times, and the behaviour."""
-    plant = behaviour_of(load_scenario(BENCHMARK), "reactor")
+    command arrives), to ``end`` ticks: its outputs and next times, and the behaviour. By
+    default without the benchmark's valve ranges (``input_range``), which would hold a negative
+    flow at 0 before the model sees it."""
+    plant = behaviour_of(load_scenario(BENCHMARK, overrides=overrides), "reactor")
     outputs = []
     r, t = 0, 0
     while t <= end:
@@ -75,3 +82,15 @@ def test_a_bearable_command_is_applied():
     clean, _ = _run(None, 1_000_000)
     hit, plant = _run(0.5, 1_000_000)
     assert hit[-1] != clean[-1] and plant.dropped_invalid == {}
+
+
+@pytest.mark.parametrize("value", [-1e300, -1e9, -0.5])
+def test_with_its_valve_range_a_negative_flow_is_held_at_zero(value):
+    """The benchmark's outflow valve passes ``[0, inf)`` (``input_range``): any negative command
+    is the valve shut, bit for bit the run commanded 0, and nothing is refused."""
+    shut, _ = _run(0.0, 1_000_000, overrides=[])
+    hit, plant = _run(value, 1_000_000, overrides=[])
+    assert hit == shut and plant.dropped_invalid == {}
+    assert plant.u[0] == 0.0
+    unlimited, _ = _run(-0.5, 1_000_000)
+    assert unlimited != shut  # without the range the same command does reach the model

@@ -70,6 +70,36 @@ CASES = [
         "T_jin",
     ),
     ("x0_incomplete", lambda d: _nodes(d)["reactor"]["x0"].pop("T_j"), "x0", "expected exactly"),
+    (
+        "input_range_unknown_input",
+        lambda d: _nodes(d)["reactor"]["input_range"].update(F_in=[0, 1]),
+        "input_range.F_in",
+        "not an input",
+    ),
+    (
+        "input_range_empty",
+        lambda d: _nodes(d)["reactor"]["input_range"].update(F_out=[5, 5]),
+        "input_range.F_out",
+        "must be below",
+    ),
+    (
+        "u0_outside_input_range",
+        lambda d: _nodes(d)["reactor"]["input_range"].update(F_out=[0, 5]),
+        "u0.F_out",
+        "outside input_range.F_out",
+    ),
+    (
+        "input_range_nan",
+        lambda d: _nodes(d)["reactor"]["input_range"].update(F_out=[float("nan"), 20]),
+        "input_range.F_out.0",
+        "not a finite number",
+    ),
+    (
+        "infinite_gain",  # infinity means "no limit" only in limits
+        lambda d: _nodes(d)["reactor"]["x0"].update(T=float("inf")),
+        "x0.T",
+        "not a finite number",
+    ),
 ]
 
 
@@ -98,3 +128,8 @@ def test_with_loops_revalidates():
     assert s.loops["level"].tau_s == 0.1
     with pytest.raises(ValueError):
         s.with_loops(tau_s={"level": -1.0})
+
+
+def test_an_actuator_range_may_be_open_ended():
+    reactor = load_scenario(BENCHMARK).nodes["reactor"]
+    assert reactor.input_range == {"F_out": (0.0, float("inf")), "F_jin": (0.0, float("inf"))}
