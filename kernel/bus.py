@@ -187,7 +187,8 @@ def open_client(
     ------
     ConfigError
         If no router answers at ``connect`` (a run that has ended, a wrong endpoint), or it
-        refuses the credentials (none, or another run's).
+        refuses the credentials (none, or another run's), or the TLS link fails (a ``--tls``
+        run: no certificate of the run, a host name the router's certificate does not cover).
     """
     init_zenoh_log()
     if settings is None and os.environ.get(CREDENTIALS_ENV):
@@ -198,9 +199,15 @@ def open_client(
     try:
         return zenoh.open(zenoh_config(cfg))
     except zenoh.ZError as err:
+        tls = (
+            "; over tls/ the endpoint's host must be one the router's certificate names "
+            "(--tls-name) and the credentials a TLS run's"
+            if connect.startswith("tls/")
+            else ""
+        )
         raise ConfigError(
             f"no router answers at {connect}, or it refused this session's credentials "
-            f"(has the run ended? is it a secure run?): {err}"
+            f"(has the run ended? is it a secure run? a TLS run takes tls/ only{tls}): {err}"
         ) from err
 
 
