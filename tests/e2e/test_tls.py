@@ -65,9 +65,13 @@ def tls_router(tmp_path_factory):
         router.close()
 
 
-def test_a_tls_run_has_the_plain_secure_runs_history(tmp_path, plain_run):
+@pytest.mark.parametrize("engine", ["threads", "processes"])
+def test_a_tls_run_has_the_plain_secure_runs_history(tmp_path, plain_run, engine):
+    """On either engine (the processes engine's nodes find their credential files through
+    ``WNCS_SECURITY``); the plain run is the threads engine's, whose history every engine
+    reproduces."""
     out = tmp_path / "tls"
-    wncs_run(BENCHMARK, out, "--engine", "threads", "--tls")
+    wncs_run(BENCHMARK, out, "--engine", engine, "--tls")
     info = json.loads((out / "run.json").read_text())
     assert info["secure"] and info["tls"] and info["endpoint"].startswith("tls/127.0.0.1:")
     assert json.loads((plain_run / "run.json").read_text())["tls"] is False
