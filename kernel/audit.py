@@ -250,7 +250,7 @@ class LogCapture:
             if self._on_refused is not None:
                 self._on_refused(refused, count)
         elif self._passthrough:
-            os.write(self._saved, line.encode())
+            os.write(self._saved, line.encode() + b"\n")
 
     def close(self, timeout: float = 5.0) -> dict[str, Any]:
         """Give file descriptor 1 back (the pipe ends, the reader drains it) and return the
