@@ -9,7 +9,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 __all__ = ["ForkServer", "Forked"]
@@ -65,21 +65,27 @@ def _exists(pid: int) -> bool:
 
 class ForkServer:
     """``python -m runtime.forkserver`` started for ``names``; :meth:`nodes` waits until it has
-    forked them all and returns their handles by name."""
+    forked them all and returns their handles by name.
+
+    With ``connect=None`` the server starts before the router's endpoint is known (it imports
+    and validates meanwhile: the launcher starts it beside the router's process) and forks once
+    :meth:`connect_to` gives it; :meth:`abandon` sends it away without forking. ``env`` is its
+    environment (the nodes'), default this process's."""
 
     def __init__(
         self,
         scenario_path: str,
         names: Sequence[str],
         *,
-        connect: str,
+        connect: str | None,
         run_id: str,
         logs: Path,
         args: Sequence[str],
         preexec_fn: Callable[[], None] | None = None,
+        env: Mapping[str, str] | None = None,
     ) -> None:
         cmd = [sys.executable, "-m", "runtime.forkserver", scenario_path]
-        cmd += ["--connect", connect, "--run-id", run_id, "--logs", str(logs), *args]
+        cmd += ["--connect", connect or "-", "--run-id", run_id, "--logs", str(logs), *args]
         for name in names:
             cmd += ["--node", name]
         self.names = list(names)
@@ -88,15 +94,35 @@ class ForkServer:
             cmd,
             stdout=subprocess.PIPE,
             stderr=self._log,
-            stdin=subprocess.DEVNULL,
+            stdin=subprocess.DEVNULL if connect else subprocess.PIPE,
             start_new_session=True,
             preexec_fn=preexec_fn,
             text=True,
+            env=None if env is None else dict(env),
         )
         self.children: dict[str, Forked] = {}
         self._all = threading.Event()
         self._reader = threading.Thread(target=self._read, name="forkserver", daemon=True)
         self._reader.start()
+
+    def connect_to(self, endpoint: str) -> None:
+        """The router's endpoint, for a server started with ``connect=None``: it forks now."""
+        self._send(endpoint + "\n")
+
+    def abandon(self) -> None:
+        """Send a server started with ``connect=None`` away without forking, and wait for it."""
+        self._send("")
+        self.close()
+
+    def _send(self, text: str) -> None:
+        stdin = self.proc.stdin
+        if stdin is None or stdin.closed:
+            return
+        try:
+            stdin.write(text)
+            stdin.close()
+        except OSError:  # it left already
+            pass
 
     def gone(self) -> bool:
         return self.proc.poll() is not None

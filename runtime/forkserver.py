@@ -17,6 +17,10 @@ only the children open sessions. The server tells its parent on standard output,
 as ``subprocess`` gives it: negative for a signal), and leaves when every child has.
 
     python -m runtime.forkserver SCENARIO --connect EP --run-id ID --logs DIR --node NAME ...
+
+With ``--connect -`` the server imports and validates first, then reads the endpoint as a line
+on its standard input (the launcher starts it beside the router's process, whose endpoint it
+learns only once that router listens); an empty input sends it away.
 """
 
 from __future__ import annotations
@@ -122,7 +126,9 @@ def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int)
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m runtime.forkserver", description=__doc__)
     p.add_argument("scenario", help="scenario YAML file")
-    p.add_argument("--connect", required=True, help="the router's endpoint")
+    p.add_argument(
+        "--connect", required=True, help="the router's endpoint (-: a line on standard input)"
+    )
     p.add_argument("--run-id", required=True, help="the run id")
     p.add_argument("--logs", required=True, help="folder of the nodes' logs")
     p.add_argument("--node", action="append", required=True, help="a node to fork (repeatable)")
@@ -143,6 +149,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if args.seed is not None:
         scenario = scenario.model_copy(update={"seed": args.seed})
+    if args.connect == "-":  # started before the router: its endpoint comes on standard input
+        args.connect = sys.stdin.readline().strip()
+        if not args.connect:
+            print("forkserver: no router endpoint (the launcher gave up)", file=sys.stderr)
+            return 2
     sys.stdout.flush()
     gc.collect()
     gc.freeze()  # the children share the imported objects' pages instead of copying them

@@ -288,27 +288,50 @@ def _launch_bus(
         else prepare_security(out, scenario, run_id, tls=tls, tls_names=listen_names(listen))
     )
     warn_insecure(listen, secure=security is not None)
-    router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
-        listen,
-        security=security,
-        zenoh_config=zenoh_config,
-        refused_log=None if security is None else out / REFUSED_LOG,
-    )
+    names = ["clock", *scenario.participants()]
+    options = {
+        "historian": ["--out", str(out), "--engine", engine],
+        "clock": ["--realtime", repr(realtime)] if realtime else [],
+    }
+    common_args = ["--seed", str(scenario.seed), *(f"--set={o}" for o in overrides)]
+    server = None
+    if engine == "processes":  # it imports while the router starts; forks once it listens
+        (out / "logs").mkdir(exist_ok=True)
+        server = ForkServer(  # one interpreter imports and forks every node (runtime/forkserver.py)
+            str(scenario_path),
+            names,
+            connect=None,
+            run_id=run_id,
+            logs=out / "logs",
+            args=[*options["historian"], *options["clock"], *common_args],
+            preexec_fn=die_with_parent,
+            env=_node_environment(security),
+        )
+    try:
+        router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
+            listen,
+            security=security,
+            zenoh_config=zenoh_config,
+            refused_log=None if security is None else out / REFUSED_LOG,
+        )
+    except BaseException:
+        if server is not None:
+            server.abandon()
+        raise
     locators = router.locators
     endpoint = pick_endpoint(locators, listen, listen_names(listen))
     try:  # the launcher's own session: it shows the run's progress
         watch = open_client(
             endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
         )
-    except ConfigError:
+    except BaseException:
         router.close()
+        if server is not None:
+            server.abandon()
         raise
     run_info["endpoint"] = endpoint
     run_info["secure"] = security is not None
     run_info["tls"] = tls
-    previous = os.environ.pop(SECURITY_ENV, None)
-    if security is not None:  # node processes find their credentials here (wncs node)
-        os.environ[SECURITY_ENV] = str(security.resolve())
     _write_json(out / RUN_FILE, run_info)
     if on_start is not None:
         on_start(out)
@@ -320,26 +343,11 @@ def _launch_bus(
             keys.full(run_id, keys.alive_all()), prog.on_alive, history=True
         ),
     ]
-    names = ["clock", *scenario.participants()]
-    options = {
-        "historian": ["--out", str(out), "--engine", engine],
-        "clock": ["--realtime", repr(realtime)] if realtime else [],
-    }
-    common_args = ["--seed", str(scenario.seed), *(f"--set={o}" for o in overrides)]
     t_started: float | None = None
     code, error = 0, None
     try:
-        if engine == "processes":
-            code, error, t_started = _run_processes(
-                scenario_path,
-                out,
-                run_info,
-                names,
-                endpoint,
-                options,
-                common_args,
-                prog,
-            )
+        if server is not None:
+            code, error, t_started = _run_processes(server, out, run_info, names, endpoint, prog)
         else:
             code, error, t_started = _run_threads(
                 scenario,
@@ -353,14 +361,13 @@ def _launch_bus(
                 security,
             )
     finally:
+        if server is not None:
+            server.abandon()  # nothing if it forked (its input is closed then); else it goes
         prog.show(final=True)
         for s in subs:
             s.undeclare()
         watch.close()
         refusals = router.close()
-        os.environ.pop(SECURITY_ENV, None)
-        if previous is not None:
-            os.environ[SECURITY_ENV] = previous
     wall_end = time.perf_counter()
     if prog.stop is not None and not prog.stop.ok and error is None:
         error = prog.stop.reason
@@ -383,29 +390,27 @@ def _launch_bus(
     return RunResult(0, None, summary, out)
 
 
+def _node_environment(security: Path | None) -> dict[str, str]:
+    """The node processes' environment: this one, and the run's security directory for a
+    secure run (``wncs node`` finds its credentials there); never an outer run's."""
+    env = {k: v for k, v in os.environ.items() if k != SECURITY_ENV}
+    if security is not None:
+        env[SECURITY_ENV] = str(security.resolve())
+    return env
+
+
 def _run_processes(
-    scenario_path: Path,
+    server: ForkServer,
     out: Path,
     run_info: dict[str, Any],
     names: list[str],
     endpoint: str,
-    options: dict[str, list[str]],
-    common_args: list[str],
     prog: _Progress,
 ) -> tuple[int, str | None, float | None]:
     logs = out / "logs"
-    logs.mkdir(exist_ok=True)
     procs: dict[str, Any] = {}  # name -> Forked (what of subprocess.Popen the launcher uses)
     t_started: float | None = None
-    server = ForkServer(  # one interpreter imports and forks every node (runtime/forkserver.py)
-        str(scenario_path),
-        names,
-        connect=endpoint,
-        run_id=run_info["run_id"],
-        logs=logs,
-        args=[*options.get("historian", []), *options.get("clock", []), *common_args],
-        preexec_fn=die_with_parent,
-    )
+    server.connect_to(endpoint)
     try:
         try:
             procs = server.nodes(timeout=_FORK_TIMEOUT_S)
