@@ -20,7 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.monitor.audit import collect_loops, load_audit_config, rank, run_audit
 from agents.monitor.audit_report import write_audit

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections import Counter
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.monitor.assess import assess
 from agents.monitor.config import MonitorConfig, ScreeningConfig

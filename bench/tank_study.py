@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import control
+import control  # noqa: TID253 - not a node: imports what it uses at the top
 import numpy as np
 
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig

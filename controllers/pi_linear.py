@@ -3,9 +3,12 @@ a controller node, which runs the law, does not import python-control)."""
 
 from __future__ import annotations
 
-import control
+from typing import TYPE_CHECKING
 
 from controllers.pi import PIConfig
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["pi_state_space"]
 
@@ -26,6 +29,8 @@ def pi_state_space(
     ``feedforward_gain`` is ``d u_bar / d r`` (seed 000 eq. (5)-(7) linearised), added to
     ``u_k`` as ``feedforward_gain r_k``. ``signals`` names ``(r, y, u)``.
     """
+    import control
+
     if not h > 0.0:
         raise ValueError(f"the period must be > 0, got {h}")
     kp = config.Kp + (config.Ki * h if config.integration == "backward" else 0.0)

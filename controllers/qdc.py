@@ -67,7 +67,6 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 from scipy.linalg import block_diag, expm
-from scipy.signal import place_poles
 
 from plants.integrate import rk4
 
@@ -269,6 +268,8 @@ class QDCDesign(BaseModel):
 
     def gains(self) -> QDCGains:
         """The gains ``K_i, K_ij, L_i`` of this design."""
+        from scipy.signal import place_poles
+
         plant = self.plant
         n = plant.n
         K: list[list[NDArray[np.float64]]] = [[np.zeros(0)] * n for _ in range(n)]
@@ -321,6 +322,8 @@ def observer_gain(
     ValueError
         If ``(A, C)`` is not observable.
     """
+    from scipy.signal import place_poles
+
     A = np.asarray(A, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     p = A.shape[0]

@@ -43,15 +43,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.linalg import expm
 
 from plants.knots import CHUNK, Knots
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["CHUNK", "CascadeCTParams", "CascadeCT", "SampledCascadeCT", "sampled", "step_response"]
 
@@ -204,6 +206,8 @@ class CascadeCT:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """The model as a ``control.StateSpace`` (outputs ``y1``, ``y2``, ``y3``)."""
+        import control
+
         a, b = self.jacobians()
         c = np.zeros((3, a.shape[0]))
         c[0, self._n + 2] = 1.0

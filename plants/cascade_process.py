@@ -98,7 +98,6 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
-from scipy.signal import lfilter
 
 __all__ = [
     "TF",
@@ -205,6 +204,8 @@ class TF:
         ValueError
             If ``n`` is None and the transfer function is not stable.
         """
+        from scipy.signal import lfilter
+
         if n is None:
             rho = self.spectral_radius()
             if rho >= 1.0 - 1e-9:
@@ -744,6 +745,8 @@ def simulate(
     burn_in : int
         Leading samples dropped (the loop starts at rest).
     """
+    from scipy.signal import lfilter
+
     if n < 1 or burn_in < 0:
         raise ValueError(f"simulate: n ({n}) must be >= 1 and burn_in ({burn_in}) >= 0")
     total = n + burn_in

@@ -93,15 +93,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.integrate import solve_ivp
 from scipy.linalg import null_space, solve_continuous_lyapunov
 from scipy.optimize import fsolve
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = [
     "ColumnParams",
@@ -325,6 +327,8 @@ class Column:
 
     def linearize(self, x: Array, u: Array) -> control.StateSpace:
         """Linear model in deviation variables at ``(x, u)``, outputs ``(x_D, x_B)``."""
+        import control
+
         jac, bu = self.jacobian(x, u)
         c = np.zeros((2, self.n))
         c[0, -1] = 1.0
@@ -514,6 +518,8 @@ class ReducedModel:
 
     def to_statespace(self) -> control.StateSpace:
         """As a python-control state-space object."""
+        import control
+
         return control.ss(self.A, self.B, self.C, self.D)
 
 

@@ -42,12 +42,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.optimize import fsolve
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = [
     "CSTRRecycleParams",
@@ -322,6 +325,8 @@ class CSTRRecycle:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
+        import control
+
         A, B = self.jacobians(x, u)
         return control.ss(
             A, B, self.output_matrix(), np.zeros((2, 4)),

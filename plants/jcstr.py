@@ -58,12 +58,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["JCSTRParams", "JCSTR", "BENCHMARK_PARAMS", "H_MIN"]
 
@@ -253,6 +255,8 @@ class JCSTR:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
+        import control
+
         A, B = self.jacobians(x, u)
         C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
         return control.ss(

@@ -10,12 +10,14 @@ Jacobians are central differences. The coordination agent's fast method
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import control
 import numpy as np
 import scipy.optimize
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["equilibrium", "jacobians", "linearize"]
 
@@ -90,6 +92,8 @@ def linearize(model: Any, x: NDArray[np.float64], u: NDArray[np.float64]) -> con
     """The small-signal model at ``(x, u)`` as a continuous ``control.StateSpace`` in deviation
     variables, with the plant's state, input and output names: the plant's own (analytic)
     ``linearize`` when it has one, else :func:`jacobians`."""
+    import control
+
     if hasattr(model, "linearize"):
         sys = model.linearize(x, u)
         if isinstance(sys, control.StateSpace):

@@ -19,10 +19,14 @@ python-control.
 
 from __future__ import annotations
 
-import control
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["zoh_with_delay", "sampled_with_delay"]
 
@@ -73,6 +77,8 @@ def sampled_with_delay(sys: control.StateSpace, h: float, tau_d: float) -> contr
     ``<input>[k-j]``; ``m = l + 1`` when ``theta > 0``, else ``l``); inputs and outputs keep
     ``sys``'s names.
     """
+    import control
+
     if not sys.isctime():
         raise ValueError("sampled_with_delay needs a continuous-time system")
     A, B, C = (np.asarray(sys.A, float), np.asarray(sys.B, float), np.asarray(sys.C, float))

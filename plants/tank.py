@@ -58,11 +58,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["TankParams", "Tank", "SIM_PARAMS", "RIG_PARAMS", "RIG_U_MAX"]
 
@@ -225,6 +228,8 @@ class Tank:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
+        import control
+
         A, B = self.jacobians(x, u)
         return control.ss(
             A, B, np.array([[1.0]]), np.zeros((1, 2)),

@@ -46,11 +46,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["TankTrainParams", "TankTrain"]
 
@@ -188,6 +191,8 @@ class TankTrain:
 
     def linearize(self, x: NDArray[np.float64], u: NDArray[np.float64]) -> control.StateSpace:
         """Small-signal model ``(A, B, C, D)`` at ``(x, u)`` as a ``control.StateSpace``."""
+        import control
+
         A, B = self.jacobians(x, u)
         n = self._n
         return control.ss(

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from controllers.pi import PIConfig
@@ -26,6 +26,9 @@ from controllers.registry import uses_feedforward
 from plants.linearization import equilibrium, linearize
 from plants.sampled import sampled_with_delay
 from runtime.scenario import Scenario
+
+if TYPE_CHECKING:
+    import control
 
 __all__ = ["LinearLoop", "linearized_loop"]
 
@@ -66,6 +69,8 @@ class LinearLoop:
     def step_response(self, size: float, samples: int) -> control.TimeResponseData:
         """The closed loop's response to a set-point step of ``size`` at sample 0, over
         ``samples`` periods (outputs in deviations: add ``y_bar`` / ``u_bar``)."""
+        import control
+
         if self.closed is None:
             raise ValueError(f"loop {self.loop!r}: no closed loop (its law is not a PI)")
         t = np.arange(samples) * self.tau_s
@@ -90,6 +95,8 @@ def linearized_loop(
     ValueError
         If the loop is unknown, or has no sensor or no actuator.
     """
+    import control
+
     if loop not in scenario.loops:
         raise ValueError(f"no loop {loop!r} (loops: {', '.join(sorted(scenario.loops))})")
     cfg = scenario.loops[loop]

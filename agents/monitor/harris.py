@@ -52,8 +52,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter
-from scipy.stats import norm
 
 from agents.monitor.errors import IdentificationError, check_not_diverging
 from agents.monitor.stationarity import classify
@@ -187,6 +185,8 @@ def harris_index(
         its :attr:`~agents.monitor.errors.IdentificationError.kind`: ``drift``,
         ``integrating``, ``manual`` or ``diverging``).
     """
+    from scipy.stats import norm
+
     y = np.asarray(y, dtype=float).ravel()
     if not np.all(np.isfinite(y)):
         raise IdentificationError("not_finite", f"{name!r} has NaN or infinite values")
@@ -317,6 +317,8 @@ def _bootstrap(
     n_boot: int,
     rng: np.random.Generator,
 ) -> NDArray[np.float64]:
+    from scipy.signal import lfilter
+
     p = a.size
     target, x = lagged(y[:, None], p)
     resid = (target - x @ a[:, None]).ravel()

@@ -57,7 +57,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.stats
 from numpy.typing import NDArray
 
 from agents.wncsca.fast import LinearPredictor, phi1
@@ -122,6 +121,8 @@ def risk_index(realizations: int, confidence: float) -> int:
 
 def probability_interval(within: int, total: int) -> tuple[float, float]:
     """Two-sided 95 % Clopper-Pearson interval of ``P(within)`` from ``within`` of ``total``."""
+    import scipy.stats
+
     lo = 0.0 if within == 0 else float(scipy.stats.beta.ppf(0.025, within, total - within + 1))
     hi = 1.0 if within == total else float(scipy.stats.beta.ppf(0.975, within + 1, total - within))
     return lo, hi

@@ -95,7 +95,6 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 from numpy.typing import NDArray
 
 from agents.wncsca.assignment import Assignment, Trial
@@ -196,6 +195,8 @@ class _PlantData:
 def _pade(delay: float, order: int = _PADE_ORDER) -> tuple[NDArray[np.float64], ...]:
     """State-space ``(Ap, Bp, Cp, Dp)`` of the Pade approximant of ``exp(-s delay)``,
     ``delay > 0``."""
+    import scipy.signal
+
     n = order
     c = [
         math.factorial(2 * n - k)

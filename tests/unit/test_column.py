@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import control  # balred uses slycot, a dev dependency
+import control  # noqa: TID253 - not a node; balred uses slycot, a dev dependency
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose

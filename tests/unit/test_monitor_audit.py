@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.signal import lfilter
+from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.monitor.audit import collect_loops, load_audit_config, rank, run_audit
 from agents.monitor.audit_report import TABLE_COLUMNS

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.signal import lfilter
+from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.monitor.errors import IdentificationError
 from agents.monitor.harris import harris_index

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.signal import lfilter
+from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.monitor.assess import assess, assess_csv, parse_time
 from agents.monitor.config import MonitorConfig, ScreeningConfig

@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import control
+import control  # noqa: TID253 - not a node: imports what it uses at the top
 import numpy as np
 import pytest
 from pydantic import ValidationError

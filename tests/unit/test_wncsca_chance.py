@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-import scipy.stats
+import scipy.stats  # noqa: TID253 - not a node: imports what it uses at the top
 from pydantic import ValidationError
 
 from agents.wncsca.chance import (
