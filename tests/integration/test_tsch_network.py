@@ -174,6 +174,7 @@ def test_the_bus_engines_run_the_tsch_demo_as_the_direct_engine(engine, tmp_path
     bus = launch(TSCH, tmp_path / engine, engine=engine)
     assert direct.code == 0 and bus.code == 0, bus.error
     a, b = _without_wall_clock(direct.summary), _without_wall_clock(bus.summary)
+    assert b.pop("router") == {"refused": 0, "attempts": []}  # bus only: nobody was refused
     assert a["wncsca"]["decisions"] and a == b
 
 
