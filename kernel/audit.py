@@ -187,6 +187,7 @@ class LogCapture:
         self._saved = -1
         self._thread: threading.Thread | None = None
         self._out: TextIO | None = None
+        self._passthrough = False  # whether the user's RUST_LOG asked for other lines
         self._lock = threading.Lock()
 
     def start(self) -> bool:
