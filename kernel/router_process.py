@@ -75,6 +75,9 @@ class RouterProcess:
             stderr=subprocess.PIPE,
             text=True,
             preexec_fn=die_with_parent,
+            # out of the terminal's process group: Ctrl-C goes to the launcher, which stops the
+            # run through its clock and closes the router last (the nodes still need it then)
+            start_new_session=True,
         )
         self._lines: queue.Queue[str | None] = queue.Queue()
         self._stderr: list[str] = []

@@ -23,12 +23,13 @@ pytestmark = pytest.mark.slow
 WNCS = str(Path(sys.executable).parent / "wncs")
 
 
-def _start(out: Path, engine: str) -> subprocess.Popen:
+def _start(out: Path, engine: str, *, own_group: bool = False) -> subprocess.Popen:
     return subprocess.Popen(
         [WNCS, "run", str(BENCHMARK), "--engine", engine, "--realtime", "1.0", "--out", str(out)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
+        start_new_session=own_group,  # its own process group, as a terminal's foreground job
     )
 
 
@@ -62,15 +63,28 @@ def full_run(tmp_path_factory):
 
 
 @pytest.mark.parametrize(
-    ("engine", "sig"),
-    [("threads", signal.SIGINT), ("processes", signal.SIGINT), ("processes", signal.SIGTERM)],
+    ("engine", "sig", "group"),
+    [
+        ("threads", signal.SIGINT, False),
+        ("processes", signal.SIGINT, False),
+        ("processes", signal.SIGTERM, False),
+        # Ctrl-C at a terminal: SIGINT to the whole foreground group, the launcher's children
+        # too (the router's process must not leave before the nodes have stopped through it)
+        ("threads", signal.SIGINT, True),
+        ("processes", signal.SIGINT, True),
+    ],
 )
-def test_an_interrupted_run_stops_cleanly_and_keeps_its_history(engine, sig, full_run, tmp_path):
+def test_an_interrupted_run_stops_cleanly_and_keeps_its_history(
+    engine, sig, group, full_run, tmp_path
+):
     out = tmp_path / "run"
-    proc = _start(out, engine)
+    proc = _start(out, engine, own_group=group)
     try:
         wait_until(lambda: _latest_t(out) >= 3_000_000, timeout=120, what="t = 3 pu")
-        proc.send_signal(sig)
+        if group:
+            os.killpg(proc.pid, sig)
+        else:
+            proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
