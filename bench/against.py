@@ -14,6 +14,7 @@ both sides; each side keeps its fastest figure (load only ever slows a run down)
 from __future__ import annotations
 
 import json
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -78,3 +79,10 @@ class Comparison:
             ours.append(measure_in(ROOT, snippet))
             theirs.append(measure_in(self.tree, snippet))
         return ours, theirs
+
+    def print_table(self, ours: list[float], theirs: list[float], *, digits: int) -> None:
+        """The fastest and median figure of each side, as a Markdown table."""
+        print("| tree | fastest | median |")
+        print("|---|---:|---:|")
+        for label, xs in (("this tree", ours), (self.rev, theirs)):
+            print(f"| {label} | {min(xs):.{digits}f} | {statistics.median(xs):.{digits}f} |")

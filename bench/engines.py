@@ -59,10 +59,7 @@ def against(rev: str, rounds: int) -> None:
     with Comparison(rev) as cmp:
         ours, theirs = cmp.run(DIRECT_MS, rounds=rounds)
     print(f"direct engine, CPU ms per jcstr_benchmark run, {rounds} alternating processes:")
-    print("| tree | fastest | median |")
-    print("|---|---:|---:|")
-    for label, xs in (("this tree", ours), (rev, theirs)):
-        print(f"| {label} | {min(xs):.1f} | {statistics.median(xs):.1f} |")
+    cmp.print_table(ours, theirs, digits=1)
     print(f"this tree / {rev}: {min(ours) / min(theirs):.2f} (fastest against fastest)\n")
 
 

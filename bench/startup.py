@@ -84,10 +84,7 @@ def processes_startup(rev: str, launches: int) -> None:
     with Comparison(rev) as cmp:
         ours, theirs = cmp.run(PROCESSES_STARTUP, rounds=launches)
     print(f"\nprocesses engine start-up on jcstr_benchmark (s), {launches} alternating launches:")
-    print("| tree | fastest | median |")
-    print("|---|---:|---:|")
-    for label, xs in (("this tree", ours), (rev, theirs)):
-        print(f"| {label} | {min(xs):.2f} | {statistics.median(xs):.2f} |")
+    cmp.print_table(ours, theirs, digits=2)
     print(f"this tree / {rev}: {statistics.median(ours) / statistics.median(theirs):.2f} (medians)")
 
 

@@ -16,6 +16,7 @@ __all__ = [
     "ProtocolError",
     "NodeTimeout",
     "NodeFault",
+    "exit_code",
 ]
 
 
@@ -37,3 +38,13 @@ class NodeTimeout(WncsError, TimeoutError):
 
 class NodeFault(WncsError, RuntimeError):
     """A run was stopped because a node failed; the message names the node and the round."""
+
+
+def exit_code(err: BaseException) -> int:
+    """The exit code of a command that ends with ``err``: 2 for bad input (:class:`ConfigError`),
+    130 for an interrupt (the shell's 128 + SIGINT), 1 for anything else."""
+    if isinstance(err, ConfigError):
+        return 2
+    if isinstance(err, KeyboardInterrupt):
+        return 130
+    return 1

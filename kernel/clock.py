@@ -130,31 +130,26 @@ class ClockRunner:
         self, rel: str, body: BaseModel, *, round: int | None = None, t: int | None = None
     ) -> None:
         """Publish as the clock, stamped with the current round and time unless told otherwise."""
-        payload = codec.encode(
-            run=self.run_id,
-            src="clock",
-            seq=self._seq,
-            round=self.planner.round if round is None else round,
-            t=self.planner.t if t is None else t,
-            body=body,
-        )
-        self._seq += 1
-        self.session.put(
-            self._full(rel),
-            payload,
-            encoding=zenoh.Encoding(codec.ENCODING),
-            congestion_control=zenoh.CongestionControl.BLOCK,
-            express=False,  # batched: 0.5 us a put, not 33 (bench/round_budget.py)
-        )
+        round = self.planner.round if round is None else round
+        self._put([rel], self._envelope(body, round, self.planner.t if t is None else t))
 
     def _publish_tick(self, tick: Tick, to: frozenset[str]) -> None:
         """Publish ``tick`` on ``clock/tick`` (the nodes that take every tick, observers) and on
         ``clock/tick/<node>`` for each node of ``to`` but those."""
+        rels = [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.spec.every_tick)]
+        self._put(rels, self._envelope(tick, tick.round, tick.t))
+
+    def _envelope(self, body: BaseModel, round: int, t: int) -> bytes:
+        """``body`` as the clock's next message of round ``round`` at ``t``."""
         payload = codec.encode(
-            run=self.run_id, src="clock", seq=self._seq, round=tick.round, t=tick.t, body=tick
+            run=self.run_id, src="clock", seq=self._seq, round=round, t=t, body=body
         )
         self._seq += 1
-        for rel in [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.spec.every_tick)]:
+        return payload
+
+    def _put(self, rels: list[str], payload: bytes) -> None:
+        """The same ``payload`` on each run-relative key of ``rels``."""
+        for rel in rels:
             self.session.put(
                 self._full(rel),
                 payload,

@@ -152,21 +152,27 @@ def _builder(
     )
 
 
-def new_ca(common_name: str) -> RunCa:
-    """A fresh certificate authority named ``common_name`` (the run's: ``wncs run r1a2b3``)."""
-    key = ec.generate_private_key(ec.SECP256R1())
-    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
-    usage = x509.KeyUsage(
-        digital_signature=False,
+def _key_usage(*, signs_certificates: bool) -> x509.KeyUsage:
+    """A CA's key signs certificates (and revocation lists) only; a router's or a node's
+    signs its TLS handshakes only."""
+    return x509.KeyUsage(
+        digital_signature=not signs_certificates,
         content_commitment=False,
         key_encipherment=False,
         data_encipherment=False,
         key_agreement=False,
-        key_cert_sign=True,
-        crl_sign=True,
+        key_cert_sign=signs_certificates,
+        crl_sign=signs_certificates,
         encipher_only=False,
         decipher_only=False,
     )
+
+
+def new_ca(common_name: str) -> RunCa:
+    """A fresh certificate authority named ``common_name`` (the run's: ``wncs run r1a2b3``)."""
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
+    usage = _key_usage(signs_certificates=True)
     cert = (
         _builder(common_name, name, key.public_key())
         .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
@@ -186,17 +192,7 @@ def issue(ca: RunCa, common_name: str, *, names: Iterable[str] = (), server: boo
     if not isinstance(ca_key, ec.EllipticCurvePrivateKey):
         raise ConfigError("the run's CA key is not an EC key")
     key = ec.generate_private_key(ec.SECP256R1())
-    usage = x509.KeyUsage(
-        digital_signature=True,
-        content_commitment=False,
-        key_encipherment=False,
-        data_encipherment=False,
-        key_agreement=False,
-        key_cert_sign=False,
-        crl_sign=False,
-        encipher_only=False,
-        decipher_only=False,
-    )
+    usage = _key_usage(signs_certificates=False)
     purposes = [ExtendedKeyUsageOID.CLIENT_AUTH]
     if server:
         purposes.insert(0, ExtendedKeyUsageOID.SERVER_AUTH)

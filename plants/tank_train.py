@@ -50,7 +50,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field
+
+from plants.tank import TankParams
 
 if TYPE_CHECKING:
     import control
@@ -58,28 +60,15 @@ if TYPE_CHECKING:
 __all__ = ["TankTrainParams", "TankTrain"]
 
 
-class TankTrainParams(BaseModel):
-    """Parameters of the train: seed 002 eq. (3b) per tank, the number of tanks and the share
-    of each outflow that feeds the next tank."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
+class TankTrainParams(TankParams):
+    """Parameters of the train: seed 002 eq. (3b) per tank and its pump's range
+    (:class:`~plants.tank.TankParams`), the number of tanks and the share of each outflow that
+    feeds the next tank."""
 
     n: int = Field(ge=1, description="number of tanks in series (one loop each)")
-    b: float = Field(gt=0, description="input gain K_v/A_T, level unit per second per unit u")
-    a_prime: float = Field(
-        gt=0, description="outflow coefficient a' = A_o sqrt(2g)/A_T, level unit^0.5 per second"
-    )
     c: float = Field(
         ge=0, lt=1, description="share of tank i-1's outflow that flows into tank i, in [0, 1)"
     )
-    u_min: float = Field(default=0.0, description="lowest pump command (a pump cannot reverse)")
-    u_max: float = Field(default=math.inf, description="highest pump command")
-
-    @model_validator(mode="after")
-    def _limits_ordered(self) -> TankTrainParams:
-        if not self.u_min < self.u_max:
-            raise ValueError(f"u_min ({self.u_min}) must be below u_max ({self.u_max})")
-        return self
 
 
 class TankTrain:

@@ -40,10 +40,10 @@ from typing import Any
 
 from agents.monitor.command import add_assess_arguments, run_from_args
 from agents.wncsca.timeline import format_timeline
-from core.errors import ConfigError, SchemaError, WncsError
+from core.errors import ConfigError, SchemaError, WncsError, exit_code
 from dashboard import command as dashboard_command
-from kernel.bus import CONFIG_ENV, CREDENTIALS_ENV, init_zenoh_log
-from kernel.security import client_settings, credential_path, read_credential
+from kernel.bus import CONFIG_ENV, init_zenoh_log
+from kernel.security import client_settings, read_credential
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.export import export_run
@@ -54,7 +54,7 @@ from runtime.report import load_run, write_plots, write_summary
 from runtime.router import serve_router
 from runtime.scale import PLANTS, write_scale
 from runtime.scenario import Scenario, load_scenario
-from runtime.security import INJECT, SECURITY_ENV, login_of
+from runtime.security import INJECT, login_of, use_node_credentials
 from runtime.sweep import SWEEP_CSV, SWEEP_PARQUET, SWEEP_PNG, parse_axis, sweep
 
 __all__ = ["main", "build_parser", "EXAMPLES"]
@@ -804,14 +804,10 @@ def _cmd_scale(args: argparse.Namespace) -> int:
 
 
 def _use_node_credentials(args: argparse.Namespace) -> None:
-    """``wncs node``: the credentials its session opens with (``kernel.bus.CREDENTIALS_ENV``),
-    from ``--credentials``, else ``NAME.json`` in ``$WNCS_SECURITY``; and its zenoh
-    configuration file (``--zenoh-config``)."""
-    security = os.environ.get(SECURITY_ENV)
-    if args.credentials:
-        os.environ[CREDENTIALS_ENV] = args.credentials
-    elif security:
-        os.environ[CREDENTIALS_ENV] = str(credential_path(Path(security), args.name))
+    """``wncs node``: the credentials its session opens with (``--credentials``, else
+    ``NAME.json`` in ``$WNCS_SECURITY``: :func:`runtime.security.use_node_credentials`); and its
+    zenoh configuration file (``--zenoh-config``)."""
+    use_node_credentials(args.name, args.credentials)
     if args.zenoh_config:
         os.environ[CONFIG_ENV] = args.zenoh_config
 
@@ -842,14 +838,11 @@ def main(argv: list[str] | None = None) -> int:
             "dashboard": dashboard_command.run,
         }
         return commands[args.command](args)
-    except ConfigError as err:
-        print(f"wncs {args.command}: {err}", file=sys.stderr)
-        return 2
     except (WncsError, SchemaError) as err:
         print(f"wncs {args.command}: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+        return exit_code(err)
+    except KeyboardInterrupt as err:
+        return exit_code(err)
 
 
 if __name__ == "__main__":

@@ -33,21 +33,16 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from core.errors import ConfigError, SchemaError, WncsError
+from core.errors import ConfigError, SchemaError, WncsError, exit_code
 from kernel.bus import open_client
 from kernel.lifetime import die_with_parent
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.scenario import Scenario, load_scenario
+from runtime.security import use_node_credentials
 
 __all__ = ["run_node", "main"]
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
-
-_SECURITY_ENV = "WNCS_SECURITY"
-_CREDENTIALS_ENV = "WNCS_CREDENTIALS"
-"""A secure run's launcher names its security directory in ``WNCS_SECURITY``; a node's session
-authenticates with the file ``WNCS_CREDENTIALS`` names, ``NAME.json`` there (what ``wncs node``
-sets up from the same variable)."""
 
 
 def run_node(
@@ -89,9 +84,7 @@ def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int)
     """In a forked child: become node ``name``'s process (own group, its log) and run it."""
     os.setsid()
     die_with_parent(parent)
-    security = os.environ.get(_SECURITY_ENV)
-    if security:  # a secure run: this node's credentials, as wncs node finds them
-        os.environ[_CREDENTIALS_ENV] = os.path.join(security, f"{name}.json")
+    use_node_credentials(name)  # a secure run: this node's, as wncs node finds them
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGCHLD):
         signal.signal(sig, signal.SIG_DFL)
     fd = os.open(os.path.join(args.logs, f"{name}.log"), os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
@@ -110,14 +103,11 @@ def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int)
             engine=args.engine,
             realtime=args.realtime,
         )
-    except ConfigError as err:
-        print(f"wncs node: {err}", file=sys.stderr)
-        return 2
     except (WncsError, SchemaError) as err:
         print(f"wncs node: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+        return exit_code(err)
+    except KeyboardInterrupt as err:
+        return exit_code(err)
     except Exception:  # noqa: BLE001 - a child must never return into the server's loop
         logging.getLogger("wncs").exception("node %s failed", name)
         return 1

@@ -20,12 +20,14 @@ and the historian's is ``wncs/<run>/**``.
 from __future__ import annotations
 
 import ipaddress
+import os
 import sys
 from pathlib import Path
 from typing import Any, TextIO
 
 from bus_schemas import keys
 from core.errors import ConfigError
+from kernel.bus import CREDENTIALS_ENV
 from kernel.security import (
     SECURITY_DIR,
     Grant,
@@ -44,6 +46,7 @@ __all__ = [
     "DASHBOARD",
     "HISTORIAN",
     "LAUNCHER",
+    "use_node_credentials",
     "grants",
     "prepare",
     "credentials_of",
@@ -172,6 +175,18 @@ def pick_endpoint(locators: list[str], listen: str, names: tuple[str, ...] = ())
     port = first.rpartition(":")[2]
     host = names[0].strip("[]") if names else "127.0.0.1"
     return f"tls/{'[' + host + ']' if ':' in host else host}:{port}"
+
+
+def use_node_credentials(name: str, credentials: str | None = None) -> None:
+    """Point this process's sessions (:data:`kernel.bus.CREDENTIALS_ENV`) at node ``name``'s
+    credentials: the file ``credentials`` if given, else ``NAME.json`` in the security directory
+    ``$WNCS_SECURITY`` names; nothing when neither is there (an insecure run). What ``wncs node``
+    and each process of the fork server do before they open their session."""
+    security = os.environ.get(SECURITY_ENV)
+    if credentials:
+        os.environ[CREDENTIALS_ENV] = credentials
+    elif security:
+        os.environ[CREDENTIALS_ENV] = str(credential_path(Path(security), name))
 
 
 def credentials_of(directory: Path, name: str) -> dict[str, Any]:

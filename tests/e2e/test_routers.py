@@ -45,6 +45,26 @@ def _stop(procs: list[subprocess.Popen]) -> None:
             p.wait()
 
 
+def run_nodes_split(
+    out: Path, logs: Path, run_id: str, endpoints: list[str], nodes: dict[str, subprocess.Popen]
+) -> None:
+    """Every node of the benchmark a ``wncs node`` process with its credentials, alternately
+    on either router (the clock on the first), the historian writing to ``out``; wait for all
+    to end, each with exit 0 (``nodes`` holds them, for the caller to stop if this fails)."""
+    env = {**os.environ, SECURITY_ENV: str(out / SECURITY_DIR)}
+    names = ["clock", *load_scenario(BENCHMARK).participants()]
+    for i, name in enumerate(names):
+        cmd = [*WNCS, "node", str(BENCHMARK), name, "--connect", endpoints[i % 2]]
+        cmd += ["--run-id", run_id]
+        if name == "historian":
+            cmd += ["--out", str(out), "--engine", "threads"]
+        log = (logs / f"{name}.log").open("w")
+        nodes[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+    assert nodes["clock"].wait(timeout=300) == 0, (logs / "clock.log").read_text()[-2000:]
+    for name, p in nodes.items():
+        assert p.wait(timeout=60) == 0, (name, (logs / f"{name}.log").read_text()[-2000:])
+
+
 def test_a_run_over_two_chained_routers_equals_the_single_router_run(tmp_path):
     clean = wncs_run(BENCHMARK, tmp_path / "single", "--engine", "threads")
     out = tmp_path / "chained"
@@ -69,18 +89,7 @@ def test_a_run_over_two_chained_routers_equals_the_single_router_run(tmp_path):
         assert info["secure"]
         endpoints = [r["endpoint"] for r in info["routers"]]
         assert len(set(endpoints)) == 2
-        env = {**os.environ, SECURITY_ENV: str(out / SECURITY_DIR)}
-        names = ["clock", *load_scenario(BENCHMARK).participants()]
-        for i, name in enumerate(names):  # alternately on either router, the clock on the first
-            cmd = [*WNCS, "node", str(BENCHMARK), name, "--connect", endpoints[i % 2]]
-            cmd += ["--run-id", info["run_id"]]
-            if name == "historian":
-                cmd += ["--out", str(out), "--engine", "threads"]
-            log = (logs / f"{name}.log").open("w")
-            nodes[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
-        assert nodes["clock"].wait(timeout=300) == 0, (logs / "clock.log").read_text()[-2000:]
-        for name, p in nodes.items():
-            assert p.wait(timeout=60) == 0, (name, (logs / f"{name}.log").read_text()[-2000:])
+        run_nodes_split(out, logs, info["run_id"], endpoints, nodes)
     finally:
         _stop([*nodes.values(), *procs])
     history = out / "history.sqlite"

@@ -9,7 +9,6 @@ refused client gets ``ConfigError`` from :func:`kernel.bus.open_client`.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import threading
 from pathlib import Path
@@ -27,7 +26,6 @@ from runtime.scenario import load_scenario
 from runtime.security import (
     DASHBOARD,
     INJECT,
-    SECURITY_ENV,
     TLS_LISTEN,
     credentials_of,
     grants,
@@ -36,7 +34,7 @@ from runtime.security import (
     prepare,
 )
 from tests.conftest import BENCHMARK, wait_until
-from tests.e2e.test_routers import _stop
+from tests.e2e.test_routers import _stop, run_nodes_split
 from tests.e2e.test_runs import WNCS, wncs_run
 
 pytestmark = pytest.mark.slow
@@ -226,18 +224,7 @@ def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path,
         assert "b.wncs.test" not in alt_names((out / SECURITY_DIR / "router.pem").read_text())
         endpoints = [r["endpoint"] for r in info["routers"]]
         assert len(set(endpoints)) == 2 and all(e.startswith("tls/") for e in endpoints)
-        env = {**os.environ, SECURITY_ENV: str(out / SECURITY_DIR)}
-        names = ["clock", *load_scenario(BENCHMARK).participants()]
-        for i, name in enumerate(names):  # alternately on either router, the clock on the first
-            cmd = [*WNCS, "node", str(BENCHMARK), name, "--connect", endpoints[i % 2]]
-            cmd += ["--run-id", info["run_id"]]
-            if name == "historian":
-                cmd += ["--out", str(out), "--engine", "threads"]
-            log = (logs / f"{name}.log").open("w")
-            nodes[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
-        assert nodes["clock"].wait(timeout=300) == 0, (logs / "clock.log").read_text()[-2000:]
-        for name, p in nodes.items():
-            assert p.wait(timeout=60) == 0, (name, (logs / f"{name}.log").read_text()[-2000:])
+        run_nodes_split(out, logs, info["run_id"], endpoints, nodes)
     finally:
         _stop([*nodes.values(), *procs])
     said = (logs / "router_b.log").read_text()
