@@ -24,7 +24,7 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -82,7 +82,11 @@ class RouterProcess:
         self._lines: queue.Queue[str | None] = queue.Queue()
         self._stderr: list[str] = []
         assert self._proc.stdout is not None and self._proc.stderr is not None
-        for stream, sink in ((self._proc.stdout, self._said), (self._proc.stderr, None)):
+        sinks: tuple[tuple[IO[str], Callable[[str | None], None]], ...] = (
+            (self._proc.stdout, self._said),
+            (self._proc.stderr, self._err),
+        )
+        for stream, sink in sinks:
             threading.Thread(
                 target=self._pump, args=(stream, sink), name="router-process", daemon=True
             ).start()
@@ -95,7 +99,6 @@ class RouterProcess:
                 said[-1] if said else f"the router process did not start within {timeout:g} s"
             )
         self.locators: list[str] = list(first["locators"])
-        self.pid = self._proc.pid
 
     def _said(self, line: str | None) -> None:
         """A line of the child's standard output: its own word (tagged), or zenoh's log
@@ -105,14 +108,17 @@ class RouterProcess:
         else:
             sys.stdout.write(line)
 
-    def _pump(self, stream: IO[str], sink: Any) -> None:
+    def _err(self, line: str | None) -> None:
+        """A line of the child's standard error: kept, to say why it failed."""
+        if line is not None:
+            self._stderr.append(line)
+
+    @staticmethod
+    def _pump(stream: IO[str], sink: Callable[[str | None], None]) -> None:
+        """Each line of ``stream`` to ``sink``, then ``None`` at its end."""
         for line in stream:
-            if sink is not None:
-                sink(line)
-            else:
-                self._stderr.append(line)
-        if sink is not None:
-            sink(None)
+            sink(line)
+        sink(None)
 
     def _next(self, timeout: float) -> dict[str, Any] | None:
         try:
