@@ -60,6 +60,10 @@ SYNC_ROUNDS = 256
 sits rounds out then still knows the round within this many (the data it may keep ahead of its
 last tick, :data:`kernel.node._AHEAD`, is more)."""
 
+CANCEL_GRACE_S = 5.0
+"""A run cancelled mid-round (Ctrl-C) ends that round first, waiting this long at most for its
+``Done`` messages: every message of the rounds before the last tick is then in the history."""
+
 
 class Pacer:
     """Real-time pacing: virtual time ``t`` is due at ``start + t * seconds_per_unit`` (monotonic).
@@ -160,8 +164,9 @@ class ClockRunner:
 
     def cancel(self, reason: str) -> None:
         """Stop the run from outside (another thread): the clock publishes ``Stop(ok=False)``
-        with ``reason`` at its next wait, as for any fault (e.g. a node failed while starting,
-        or the user interrupted the run: the caller reports that, so it is logged at info)."""
+        with ``reason`` as for any fault (e.g. a node failed while starting, or the user
+        interrupted the run: the caller reports that, so it is logged at info), between rounds:
+        a round under way ends first (:data:`CANCEL_GRACE_S`)."""
         self._cancelled = reason
         self._queue.put(("cancel", reason, b""))
 
@@ -309,17 +314,22 @@ class ClockRunner:
             self._publish_tick(tick, self.participants if tick.round % SYNC_ROUNDS == 0 else who)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
+            cancelled: str | None = None
             while not (who & self.participants) <= set(dones):
                 item = self._next(deadline - time.monotonic())
                 if item is None:
+                    if cancelled is not None:
+                        raise NodeFault(cancelled)
                     silent = sorted((who & self.participants) - set(dones))
                     raise NodeFault(
                         f"node(s) {silent} did not answer round {tick.round} "
                         f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
                     )
                 kind, key, payload = item
-                if kind == "cancel":
-                    raise NodeFault(key)
+                if kind == "cancel":  # end the round first: its messages are then all handled
+                    cancelled = key  # (the historian's too), within a grace for a hung node
+                    deadline = min(deadline, time.monotonic() + CANCEL_GRACE_S)
+                    continue
                 if kind == "alive":
                     self._handle_alive(key, payload)  # type: ignore[arg-type]
                     continue
@@ -341,6 +351,8 @@ class ClockRunner:
                     continue
                 dones[done.node] = done
                 self.dropped_invalid[done.node] = done.dropped_invalid
+            if cancelled is not None:
+                raise NodeFault(cancelled)
             t_before = planner.t
             published: dict[str, int] = {}
             for node, done in sorted(dones.items()):

@@ -13,6 +13,7 @@ from bus_schemas import keys
 from controllers.behaviour import ControllerBehaviour
 from core.record import summarize
 from kernel.bus import open_client
+from kernel.clock import ClockRunner
 from runtime.direct import simulate
 from runtime.history import connect, messages_digest
 from runtime.launcher import launch
@@ -194,3 +195,40 @@ def test_a_node_built_after_the_run_was_cancelled_does_not_outlive_it(tmp_path, 
     names = set(load_scenario(BENCHMARK).participants()) | {"clock"}
     alive = [th.name for th in threading.enumerate() if th.name in names and th.is_alive()]
     assert alive == []
+
+
+def test_a_run_cancelled_mid_round_ends_that_round_and_keeps_every_message_before_it(
+    tmp_path, monkeypatch
+):
+    """Ctrl-C arrives while a round is under way (here: right after its tick went out): the
+    clock ends that round before its ``Stop``, so every message of the rounds before the last
+    recorded tick is in the history, as in a full run (the race a CI run once hit)."""
+
+    def rows(run: str, below: int) -> list[tuple]:
+        with connect(tmp_path / run / "history.sqlite") as db:
+            return db.execute(
+                "SELECT round, t, key, src, seq, body FROM messages WHERE round < ? "
+                "AND key != ? ORDER BY id",
+                (below, keys.wncsca_timing()),
+            ).fetchall()
+
+    full = launch(BENCHMARK, tmp_path / "full", engine="threads")
+    assert full.code == 0, full.error
+    # a round whose round before published (the historian has messages to handle in it)
+    busy = {r[0] for r in rows("full", 1_000_000)}
+    cut_at = min(r + 1 for r in busy if r >= 40)
+    original = ClockRunner._publish_tick
+
+    def cancel_mid_round(self, tick, to):
+        original(self, tick, to)
+        if tick.round == cut_at:
+            self.cancel("interrupted (test)")
+
+    monkeypatch.setattr(ClockRunner, "_publish_tick", cancel_mid_round)
+    res = launch(BENCHMARK, tmp_path / "cut", engine="threads")
+    assert res.code == 3 and res.error == "interrupted (test)", res.error
+    with connect(tmp_path / "cut" / "history.sqlite") as db:
+        last = db.execute("SELECT MAX(round) FROM ticks").fetchone()[0]
+    assert last == cut_at
+    kept = rows("cut", last)
+    assert kept[-1][0] == last - 1 and kept == rows("full", last)
