@@ -23,6 +23,7 @@ __all__ = [
     "done",
     "done_all",
     "stop",
+    "tick_and_stop",
     "alive",
     "alive_all",
     "sensor",
@@ -142,6 +143,13 @@ def done_all() -> str:
 
 def stop() -> str:
     return "clock/stop"
+
+
+def tick_and_stop() -> str:
+    """``clock/tick`` and ``clock/stop`` in one key expression: an observer (the historian) takes
+    both with one subscription, so that it sees them in the order the clock sent them (zenoh's
+    Python callbacks run in a thread per subscriber: two subscriptions have no common order)."""
+    return "clock/*"
 
 
 def alive(node: str) -> str:

@@ -129,9 +129,10 @@ class Behaviour:
         """Queue ``body`` on run-relative ``rel_key``; sent stamped with this round."""
         self._out.append((rel_key, body))
 
-    def reject(self, rel: str, reason: str) -> None:
-        """Drop an invalid message on ``rel``: counted per key, logged once per key."""
-        self.dropped_invalid[rel] += 1
+    def reject(self, rel: str, reason: str, count: int = 1) -> None:
+        """Drop ``count`` invalid messages on ``rel`` (``reason``: the first's): counted per key,
+        logged once per key."""
+        self.dropped_invalid[rel] += count
         if rel not in self._logged_drop:
             self._logged_drop.add(rel)
             self.log.warning(

@@ -50,7 +50,11 @@ class ClockSpec:
     max_microsteps: int
     may_drop: frozenset[str] = frozenset()
     max_rounds: int = 100_000_000
-    every_tick: frozenset[str] = frozenset()  # nodes taking every tick on clock/tick
+    observers: frozenset[str] = frozenset()
+    """Participants that take every tick on ``clock/tick`` and handle every round's messages but
+    answer only the sync rounds (:data:`SYNC_ROUNDS`): the historian. No other round waits for
+    them, so they keep off its critical path; the sync rounds bound how far they may lag.
+    Liveliness covers them like any participant, and the clock waits for them to leave."""
 
 
 log = logging.getLogger(__name__)
@@ -107,7 +111,8 @@ class ClockRunner:
         self.run_id = run_id
         self.spec = spec
         self.interpret = interpret
-        self.participants = spec.participants
+        self.observers = spec.observers & spec.participants
+        self.participants = spec.participants - self.observers  # they answer every round due
         self.planner = RoundPlanner(
             self.participants,
             spec.end,
@@ -140,7 +145,7 @@ class ClockRunner:
     def _publish_tick(self, tick: Tick, to: frozenset[str]) -> None:
         """Publish ``tick`` on ``clock/tick`` (the nodes that take every tick, observers) and on
         ``clock/tick/<node>`` for each node of ``to`` but those."""
-        rels = [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.spec.every_tick)]
+        rels = [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.observers)]
         self._put(rels, self._envelope(tick, tick.round, tick.t))
 
     def _envelope(self, body: BaseModel, round: int, t: int) -> bytes:
@@ -214,7 +219,7 @@ class ClockRunner:
             self._alive.add(name)
             return
         self._alive.discard(name)
-        if name not in self.participants or self.planner.finished:
+        if name not in self.participants | self.observers or self.planner.finished:
             return
         unit = self.spec.time_unit
         where = f"round {self.planner.round} (t = {to_units(self.planner.t):.6f} {unit})"
@@ -277,10 +282,10 @@ class ClockRunner:
 
     def _wait_for_participants(self) -> None:
         deadline = time.monotonic() + self.spec.startup_timeout_s
-        while not self.participants <= self._alive:
+        while not (everyone := self.participants | self.observers) <= self._alive:
             item = self._next(deadline - time.monotonic())
             if item is None:
-                missing = sorted(self.participants - self._alive)
+                missing = sorted(everyone - self._alive)
                 raise NodeFault(
                     f"nodes {missing} did not come alive within {self.spec.startup_timeout_s} s"
                 )
@@ -296,31 +301,35 @@ class ClockRunner:
     def _rounds(self) -> None:
         """Run the rounds. Round 0 ticks every participant (their ``Done`` says what they
         subscribe to); later rounds only those with a timer due or a message to collect
-        (:class:`~core.rounds.Participation`); liveliness still watches everyone."""
+        (:class:`~core.rounds.Participation`); liveliness still watches everyone. The
+        observers (:attr:`ClockSpec.observers`) take every tick but answer only sync rounds."""
         timeout = self.spec.round_timeout_s
         planner = self.planner
         while True:
             tick = self._stamp_injections(planner.tick())
+            sync = tick.round % SYNC_ROUNDS == 0
             if tick.round == 0:
-                who = self.participants
+                who = self.participants | self.observers
             else:
                 who = self.participation.of(tick.t, tick.expected) & self.participants
+                if sync:
+                    who |= self.observers
                 tick = Tick(
                     round=tick.round,
                     t=tick.t,
                     expected=tick.expected,
                     participants=tuple(sorted(who)),
                 )
-            self._publish_tick(tick, self.participants if tick.round % SYNC_ROUNDS == 0 else who)
+            self._publish_tick(tick, self.participants if sync else who)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
             cancelled: str | None = None
-            while not (who & self.participants) <= set(dones):
+            while not (who & (members := self.participants | self.observers)) <= set(dones):
                 item = self._next(deadline - time.monotonic())
                 if item is None:
                     if cancelled is not None:
                         raise NodeFault(cancelled)
-                    silent = sorted((who & self.participants) - set(dones))
+                    silent = sorted((who & members) - set(dones))
                     raise NodeFault(
                         f"node(s) {silent} did not answer round {tick.round} "
                         f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
@@ -356,10 +365,11 @@ class ClockRunner:
             t_before = planner.t
             published: dict[str, int] = {}
             for node, done in sorted(dones.items()):
-                if node not in self.participants:
-                    continue
-                self.participation.learn(node, done.next_time, done.listens)
+                if node not in self.participants | self.observers:
+                    continue  # dropped during the round
                 self.ticked[node] = self.ticked.get(node, 0) + 1
+                if node in self.participants:  # an observer's answer says nothing of its rounds
+                    self.participation.learn(node, done.next_time, done.listens)
                 for key, n in done.published.items():
                     published[key] = published.get(key, 0) + n
             planner.advance_with(
@@ -385,7 +395,7 @@ class ClockRunner:
     def _wait_for_exit(self, timeout: float) -> None:
         """Give the participants time to see the Stop and leave (the historian flushes)."""
         deadline = time.monotonic() + timeout
-        while self._alive & self.participants:
+        while self._alive & (self.participants | self.observers):
             item = self._next(deadline - time.monotonic())
             if item is None:
                 return

@@ -9,15 +9,21 @@ direct engine); this class only moves its messages. Each round it:
 2. runs the behaviour's round (:meth:`~core.behaviour.Behaviour.run_round`) with them in
    ``(key, src, seq)`` order, never arrival order; a message that fails to decode or validate is
    dropped, counted per key and logged once per key;
-3. publishes the behaviour's outputs stamped ``r`` and answers ``Done(r, published, next_time)``.
+3. publishes the behaviour's outputs stamped ``r`` and answers ``Done(r, published, next_time)``
+   (an observer, :attr:`BusNode.observer`, only in the rounds it is ticked for).
 
-Zenoh callbacks only put raw samples on one queue; state is touched only by the loop thread.
+The behaviour is touched only by the loop thread. Zenoh's callbacks put the clock's messages
+(ticks, the stop) on the loop's queue; a data message the callback checks and files under its
+round itself (:meth:`BusNode._on_data`, under the node's lock), and wakes the loop only when
+the round it waits for is complete: a thread wake-up costs about 40 us, several a round
+(``bench/round_budget.py``). What a callback refuses is counted by the loop (before ``Done``).
 """
 
 from __future__ import annotations
 
 import logging
 import queue
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Mapping
@@ -104,11 +110,25 @@ class BusNode:
         self._last_tick = -1  # every tick counts, the rounds this node sat out too
         self._owners: dict[str, frozenset[str]] = {}  # concrete key -> sources that own it
         self._n_pending = 0  # messages in self._pending
+        # shared with the data callback (_on_data), under _lock: _pending, _counts, _n_pending,
+        # _seen, _owners, _last_tick, _collected, _awaiting, _rejected
+        self._lock = threading.Lock()
+        self._counts: dict[int, Counter[str]] = {}  # round -> messages filed per key
+        self._awaiting: tuple[int, dict[str, int]] | None = None  # (round, need) the loop waits on
+        self._rejected: dict[str, tuple[int, str]] = {}  # key -> (count, first reason) to report
 
-    every_tick = False
-    """Whether the node takes every tick (``clock/tick``, the historian records them); the
-    others take only theirs (``clock/tick/<name>``): those of the rounds they take part in, and
-    one every :data:`kernel.clock.SYNC_ROUNDS` rounds."""
+    observer = False
+    """Whether the node observes every round (:attr:`kernel.clock.ClockSpec.observers`: the
+    historian): it takes every tick (``clock/tick``), collects and handles each round's messages,
+    and answers (``Done``) only the rounds it is ticked for, the clock's sync rounds. It takes
+    the ticks and the stop with one subscription (``clock/*``), so that a ``Stop`` comes after
+    every tick sent before it, and handles them in that order. The others take only their ticks (``clock/tick/<name>``):
+    those of the rounds they take part in, and one every :data:`kernel.clock.SYNC_ROUNDS`
+    rounds."""
+
+    @property
+    def _tick_key(self) -> str:
+        return keys.tick() if self.observer else keys.tick_to(self.name)
 
     @property
     def round(self) -> int:
@@ -129,18 +149,19 @@ class BusNode:
     def run(self) -> int:
         """Serve rounds until the clock stops the run; return the process exit code."""
         session = self.ctx.session
-        tick_key = keys.tick() if self.every_tick else keys.tick_to(self.name)
+        control = [keys.tick_and_stop()] if self.observer else [self._tick_key, keys.stop()]
         declared = [
             session.declare_subscriber(keys.full(self.run_id, rel), self._enqueue("control"))
-            for rel in (tick_key, keys.stop())
+            for rel in control
         ]
         for pattern in self.behaviour.patterns:
             declared.append(
-                session.declare_subscriber(keys.full(self.run_id, pattern), self._enqueue("data"))
+                session.declare_subscriber(keys.full(self.run_id, pattern), self._on_data)
             )
         declared.append(
             session.liveliness().declare_subscriber(
-                keys.full(self.run_id, keys.alive("clock")), self._on_clock_liveliness
+                keys.full(self.run_id, keys.alive("clock")),
+                self._on_clock_liveliness,
             )
         )
         token = session.liveliness().declare_token(keys.full(self.run_id, keys.alive(self.name)))
@@ -161,15 +182,17 @@ class BusNode:
                 try:
                     kind, key, payload = self._queue.get(timeout=self._timeout)
                 except queue.Empty:
+                    self._flush_rejections()
                     self._check_connected()
                     continue
-            if kind == "data":
-                self._accept(key, payload)
-                continue
+            if kind == "ready":
+                continue  # a collection's wake-up that came after the collection ended
             if kind == "clock_gone":
                 raise ProtocolError(f"{self.name}: the clock left the run (round {self.round})")
             rel = keys.relative(self.run_id, key)
             try:
+                if rel not in (self._tick_key, keys.stop()):
+                    raise SchemaError("not a key of the clock's ticks or stop")
                 env = self._control(payload)
                 if rel == keys.stop():
                     stop = codec.decode_body(env, Stop)
@@ -213,10 +236,14 @@ class BusNode:
             )
 
     def _round_(self, tick: Tick) -> None:
-        if tick.round <= self._last_tick or (self.every_tick and tick.round != self._last_tick + 1):
+        if tick.round <= self._last_tick or (self.observer and tick.round != self._last_tick + 1):
             raise ProtocolError(f"{self.name}: tick {tick.round} after round {self._last_tick}")
-        self._last_tick = tick.round
-        if tick.participants is not None and self.name not in tick.participants:
+        answers = tick.participants is None or self.name in tick.participants
+        with self._lock:
+            self._last_tick = tick.round
+            if answers or self.observer:
+                self._collected = False  # round r - 1's messages still count
+        if not (answers or self.observer):
             self.on_tick(tick)  # sparse rounds: nothing to collect, no timer due, no Done
             return
         self.behaviour.begin_round(tick.round, tick.t)
@@ -231,7 +258,9 @@ class BusNode:
         for rel, body in outputs:
             self._put(rel, body)
             counts[rel] += 1
-        self._drain_nowait()
+        self._flush_rejections()
+        if not answers:
+            return  # an observer between sync rounds
         self._put(
             keys.done(self.name),
             Done(
@@ -253,6 +282,16 @@ class BusNode:
 
         return callback
 
+    def _on_data(self, sample: zenoh.Sample) -> None:
+        """Zenoh's callback for a data message: check it and file it under its round; wake the
+        loop if this completes the round it waits for."""
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        with self._lock:
+            self._accept(key, payload)
+            if self._awaiting is not None and not self._missing(*self._awaiting):
+                self._awaiting = None
+                self._queue.put(("ready", "", b""))
+
     def abort(self) -> None:
         """Leave the run at the next wait (thread-safe): the launcher's way to stop a node that
         joined after the clock had already stopped the run (it would never see the ``Stop``)."""
@@ -263,7 +302,8 @@ class BusNode:
             self._queue.put(("clock_gone", "", b""))
 
     def _accept(self, key: str, payload: bytes) -> None:
-        """Check one raw data message and file it under its round (or drop it as invalid)."""
+        """Check one raw data message and file it under its round (or drop it as invalid; the
+        loop counts it). Called with the lock held."""
         try:
             rel = keys.relative(self.run_id, key)
         except ValueError:
@@ -286,11 +326,25 @@ class BusNode:
             if self._n_pending >= _PENDING_MAX:
                 raise SchemaError(f"{_PENDING_MAX} messages already wait for their rounds")
         except SchemaError as err:
-            self._reject(rel, str(err))
+            n, reason = self._rejected.get(rel, (0, str(err)))
+            self._rejected[rel] = (n + 1, reason)
             return
         self._seen.add((env.src, env.seq))
         self._pending.setdefault(env.round, []).append((rel, env))
+        self._counts.setdefault(env.round, Counter())[rel] += 1
         self._n_pending += 1
+
+    def _missing(self, prev: int, need: Mapping[str, int]) -> dict[str, int]:
+        """How many messages of round ``prev`` each key of ``need`` still lacks (lock held)."""
+        have = self._counts.get(prev) or Counter()
+        return {k: n - have[k] for k, n in need.items() if have[k] < n}
+
+    def _flush_rejections(self) -> None:
+        """Count what the data callback refused (the behaviour's counters, its log)."""
+        with self._lock:
+            rejected, self._rejected = self._rejected, {}
+        for rel, (n, reason) in rejected.items():
+            self.behaviour.reject(rel, reason, n)
 
     _collected = False
 
@@ -312,54 +366,56 @@ class BusNode:
     def _collect(self, tick: Tick) -> list[tuple[str, RawEnvelope]]:
         prev = tick.round - 1
         need = {k: n for k, n in tick.expected.items() if n > 0 and self.behaviour.listens_to(k)}
-        self._collected = False
         deadline = time.monotonic() + self._timeout
-        while True:
-            have = Counter(rel for rel, _ in self._pending.get(prev, ()))
-            missing = {k: n - have[k] for k, n in need.items() if have[k] < n}
-            if not missing:
-                break
-            remaining = deadline - time.monotonic()
-            try:
-                kind, key, payload = self._queue.get(timeout=max(remaining, 0.0))
-            except queue.Empty:
-                raise NodeTimeout(
-                    f"{self.name}: round {tick.round}: messages of round {prev} missing after "
-                    f"{self._timeout} s: {missing}"
-                ) from None
-            if kind == "data":
-                self._accept(key, payload)
-            elif kind == "clock_gone":
-                raise ProtocolError(f"{self.name}: the clock left during round {tick.round}")
-            elif key.endswith("/" + keys.stop()):
-                if self._is_stop(key, payload):
-                    raise _StopRequested(key, payload)  # a fault elsewhere ended the run
-            else:
-                self._backlog.append((kind, key, payload))
-        inbox = self._pending.pop(prev, [])
-        self._n_pending -= len(inbox)
-        for r in [r for r in self._pending if r < prev]:
-            stale = self._pending.pop(r)
-            self._n_pending -= len(stale)
-            for rel, _ in stale:
+        try:
+            while True:
+                with self._lock:
+                    missing = self._missing(prev, need)
+                    self._awaiting = (prev, need) if missing else None
+                if not missing:
+                    break
+                try:
+                    kind, key, payload = self._queue.get(
+                        timeout=max(deadline - time.monotonic(), 0.0)
+                    )
+                except queue.Empty:
+                    with self._lock:
+                        if not self._missing(prev, need):
+                            break  # complete as the time ran out
+                    raise NodeTimeout(
+                        f"{self.name}: round {tick.round}: messages of round {prev} missing "
+                        f"after {self._timeout} s: {missing}"
+                    ) from None
+                if kind == "ready":
+                    continue
+                if kind == "clock_gone":
+                    raise ProtocolError(f"{self.name}: the clock left during round {tick.round}")
+                if key.endswith("/" + keys.stop()):
+                    if self.observer:  # behind the rounds: the ticks before the Stop come first
+                        self._backlog.append((kind, key, payload))
+                    elif self._is_stop(key, payload):
+                        raise _StopRequested(key, payload)  # a fault elsewhere ended the run
+                else:
+                    self._backlog.append((kind, key, payload))
+        finally:
+            with self._lock:
+                self._awaiting = None
+        with self._lock:
+            inbox = self._pending.pop(prev, [])
+            self._counts.pop(prev, None)
+            self._n_pending -= len(inbox)
+            stale = [(r, self._pending.pop(r)) for r in [r for r in self._pending if r < prev]]
+            for r, old in stale:
+                self._counts.pop(r, None)
+                self._n_pending -= len(old)
+            self._collected = True
+        for r, old in stale:
+            for rel, _ in old:
                 self._reject(rel, f"stale message of round {r}")
         unexpected = [(rel, env) for rel, env in inbox if rel not in need]
         for rel, env in unexpected:
             self._reject(rel, f"{env.src}#{env.seq} was not announced to the clock")
-        self._collected = True
         return [(rel, env) for rel, env in inbox if rel in need]
-
-    def _drain_nowait(self) -> None:
-        """Handle data already queued (counts invalid input promptly); keep control messages."""
-        while True:
-            try:
-                item = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            if item[0] == "data":
-                self._accept(item[1], item[2])
-            else:
-                self._backlog.append(item)
 
     def _reject(self, rel: str, reason: str) -> None:
         self.behaviour.reject(rel, reason)

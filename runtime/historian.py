@@ -40,7 +40,7 @@ class Recorder(Behaviour):
 
 
 class HistorianNode(BusNode):
-    every_tick = True
+    observer = True  # off the rounds' critical path (kernel.clock.ClockSpec.observers)
 
     def __init__(self, ctx: NodeContext, *, scenario_name: str, seed: int) -> None:
         out = Path(ctx.options.get("out") or ".")

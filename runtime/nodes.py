@@ -53,7 +53,7 @@ def clock_spec(scenario: Scenario) -> ClockSpec:
         max_microsteps=scenario.clock.max_microsteps,
         max_rounds=scenario.clock.max_rounds,
         may_drop=frozenset(scenario.clock.may_drop),
-        every_tick=frozenset({"historian"}),
+        observers=frozenset({"historian"}),
     )
 
 

@@ -79,8 +79,9 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
     for name in scenario.participants():
         out[name] = Grant(
             puts=full(*owned[name], keys.done(name)),
-            # every tick, and (sparse rounds) the ticks addressed to it: clock/tick/<node>
-            subscribes=full(*reads[name], keys.tick(), f"{keys.tick()}/{name}", keys.stop()),
+            # every tick and the stop (clock/*: an observer takes both with one subscription),
+            # and (sparse rounds) the ticks addressed to it: clock/tick/<node>
+            subscribes=full(*reads[name], keys.tick_and_stop(), f"{keys.tick()}/{name}"),
             tokens=full(keys.alive(name)),
             watches=full(keys.alive(CLOCK)),
             matches=full("**"),
