@@ -16,8 +16,14 @@ a round alone, in one thread, and multiplies by how often a run does it:
   validating one (envelope + body), a zenoh ``put`` (the call alone; batched, as the nodes and
   the clock publish, and ``express`` as they did before: an immediate write per message, 60
   times dearer for no shorter round), a queue hop between two
-  threads (the callback's ``put`` to the node thread's ``get``: one wake-up), an SQLite insert
-  and a commit (the historian's), and a Zenoh round trip (``bench/engines.py``).
+  threads (one wake-up: zenoh-python runs each subscriber's callback in a thread of its own,
+  so a sample costs one hop to reach its callback, and the clock's messages one more to reach
+  the node's loop; a data message is filed by its callback, no second hop), an SQLite insert
+  and a commit (the historian's), and a Zenoh round trip (``bench/engines.py``);
+* the round's skeleton: the clock's thread puts a tick, a node's thread (woken by its
+  subscriber's callback through a queue, as in :mod:`kernel.node`) puts a ``Done``, the clock's
+  thread (woken likewise) takes it, over a router in a process of its own, as in a run, with
+  no work at all: the floor of the protocol as built.
 
 Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
 of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover
@@ -46,6 +52,7 @@ from engines import round_trip_ms, rounds_of
 from bus_schemas import Done, Tick, codec
 from kernel.bus import open_client, open_router
 from kernel.clock import SYNC_ROUNDS
+from kernel.router_process import RouterProcess
 from runtime.direct import behaviour_of
 from runtime.history import connect
 from runtime.launcher import launch
@@ -132,6 +139,45 @@ def unit_costs() -> dict[str, float]:
     return out
 
 
+def skeleton_ms(n: int = 400) -> float:
+    """Median wall time of a round with no work (see the module docstring), milliseconds."""
+    router = RouterProcess("tcp/127.0.0.1:0")
+    endpoint = next(loc for loc in router.locators if loc.startswith("tcp/"))
+    clock, node = open_client(endpoint), open_client(endpoint)
+    dones: queue.Queue[int] = queue.Queue()
+    ticks: queue.Queue[bytes] = queue.Queue()
+    subs = [
+        clock.declare_subscriber("bench/done", lambda s: dones.put(1)),
+        node.declare_subscriber("bench/tick", lambda s: ticks.put(s.payload.to_bytes())),
+    ]
+    done_pub = node.declare_publisher("bench/done")
+    tick_pub = clock.declare_publisher("bench/tick")
+
+    def serve() -> None:
+        while (item := ticks.get()) != b"":
+            done_pub.put(item)
+
+    th = threading.Thread(target=serve, daemon=True)
+    th.start()
+    time.sleep(0.5)  # let the subscriptions reach the router
+    times = []
+    try:
+        for _ in range(n + 50):
+            t0 = time.perf_counter()
+            tick_pub.put(b"x" * 40)
+            dones.get(timeout=5)
+            times.append(time.perf_counter() - t0)
+    finally:
+        ticks.put(b"")
+        th.join()
+        for sub in subs:
+            sub.undeclare()
+        clock.close()
+        node.close()
+        router.close()
+    return statistics.median(times[50:]) * 1e3
+
+
 def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
     """What one threads run does per round, its per-round wall cost (ms) and its rounds."""
     scenario = load_scenario(scenario_path)
@@ -158,11 +204,11 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
     deliveries = sum(listeners[k] for k in msg_keys)
     per_round = {
         "messages published (encode + put)": len(msg_keys) / rounds,
-        "Done answers (encode + put; clock: decode)": taken / rounds,
-        "message deliveries (queue hop + decode)": deliveries / rounds,
+        "Done answers (encode + put; clock: 2 hops + decode)": taken / rounds,
+        "message deliveries (callback hop + decode, filed there)": deliveries / rounds,
         "ticks put (clock/tick and one per addressee)": 1 + addressed,
-        "tick deliveries to their nodes (queue hop + decode)": addressed,
-        "the historian's tick (queue hop)": 1,
+        "tick deliveries to their nodes (2 hops + decode)": addressed,
+        "the historian's tick (2 hops; it answers sync rounds only)": 1,
         "historian rows (insert) and commits": (len(msg_keys) + rounds) / rounds,
     }
     return per_round, run_ms / rounds, rounds
@@ -175,19 +221,22 @@ def main() -> None:
     per_round, wall_ms, rounds = counts(args.scenario)
     unit = unit_costs()
     floor = round_trip_ms()
+    bare = skeleton_ms()
     print("unit costs, one thread, median (us):")
     for what, us in unit.items():
         print(f"  {what:14s} {us:7.1f}")
     cost = {
         "messages published (encode + put)": unit["encode"] + unit["zenoh put"],
-        "Done answers (encode + put; clock: decode)": unit["encode"]
+        "Done answers (encode + put; clock: 2 hops + decode)": unit["encode"]
         + unit["zenoh put"]
-        + unit["queue hop"]
+        + 2 * unit["queue hop"]
         + unit["decode"],
-        "message deliveries (queue hop + decode)": unit["queue hop"] + unit["decode"],
+        "message deliveries (callback hop + decode, filed there)": unit["queue hop"]
+        + unit["decode"],
         "ticks put (clock/tick and one per addressee)": unit["zenoh put"],
-        "tick deliveries to their nodes (queue hop + decode)": unit["queue hop"] + unit["decode"],
-        "the historian's tick (queue hop)": unit["queue hop"],
+        "tick deliveries to their nodes (2 hops + decode)": 2 * unit["queue hop"]
+        + unit["decode"],
+        "the historian's tick (2 hops; it answers sync rounds only)": 2 * unit["queue hop"],
         "historian rows (insert) and commits": unit["sqlite insert"],
     }
     print(f"\n{args.scenario.name}, threads engine: {rounds} rounds")
@@ -208,6 +257,11 @@ def main() -> None:
         f"{floor * 1e3:.0f} us: {wall_ms / floor:.1f}x the floor; the parts are "
         f"{total / (wall_ms * 1e3):.0%} of it, the rest is the round's critical path (tick out, "
         "Dones back over the router) and threads waiting for the interpreter lock"
+    )
+    print(
+        f"the round's skeleton (tick to a node's thread, Done back to the clock's thread, no "
+        f"work): {bare * 1e3:.0f} us, {bare / floor:.1f}x the round trip; the run's rounds "
+        f"cost {wall_ms / bare:.1f}x their skeleton"
     )
 
 
