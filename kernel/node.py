@@ -122,9 +122,9 @@ class BusNode:
     historian): it takes every tick (``clock/tick``), collects and handles each round's messages,
     and answers (``Done``) only the rounds it is ticked for, the clock's sync rounds. It takes
     the ticks and the stop with one subscription (``clock/*``), so that a ``Stop`` comes after
-    every tick sent before it, and handles them in that order. The others take only their ticks (``clock/tick/<name>``):
-    those of the rounds they take part in, and one every :data:`kernel.clock.SYNC_ROUNDS`
-    rounds."""
+    every tick sent before it, and handles them in that order. The others take only their
+    ticks (``clock/tick/<name>``): those of the rounds they take part in, and one every
+    :data:`kernel.clock.SYNC_ROUNDS` rounds."""
 
     @property
     def _tick_key(self) -> str:
