@@ -1,8 +1,10 @@
 """The historian: records every data message of the run in ``history.sqlite``.
 
-It is a participant like any other, so it handles each round's messages after they are all in,
-in ``(key, src, seq)`` order: the table's order is deterministic and two runs with the same
+It is a bus node like any other, so it handles each round's messages after they are all in, in
+``(key, src, seq)`` order: the table's order is deterministic and two runs with the same
 scenario and seed write identical message tables (see :func:`runtime.history.messages_digest`).
+It is an *observer* (:attr:`kernel.node.BusNode.observer`): it takes every tick and records
+every round, but answers only the clock's sync rounds, so no round waits for its SQLite work.
 :class:`Recorder` is the behaviour (it writes what it is handed), :class:`HistorianNode` the bus
 node that also records each tick.
 """
