@@ -335,8 +335,8 @@ class ClockRunner:
                         f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
                     )
                 kind, key, payload = item
-                if kind == "cancel":  # end the round first: its messages are then all handled
-                    cancelled = key  # (the historian's too), within a grace for a hung node
+                if kind == "cancel":  # end the round first: the ticked nodes then handled all
+                    cancelled = key  # of the round before, within a grace for a hung node
                     deadline = min(deadline, time.monotonic() + CANCEL_GRACE_S)
                     continue
                 if kind == "alive":
