@@ -131,6 +131,12 @@ class ClockRunner:
         self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
         self._cancelled: str | None = None  # the reason given to cancel(), if any
 
+    @property
+    def members(self) -> frozenset[str]:
+        """Every node of the run still in it: the participants and the observers (liveliness
+        and the run's end wait for them all)."""
+        return self.participants | self.observers
+
     # -- bus plumbing ----------------------------------------------------------------------------
     def _full(self, rel: str) -> str:
         return keys.full(self.run_id, rel)
@@ -219,7 +225,7 @@ class ClockRunner:
             self._alive.add(name)
             return
         self._alive.discard(name)
-        if name not in self.participants | self.observers or self.planner.finished:
+        if name not in self.members or self.planner.finished:
             return
         unit = self.spec.time_unit
         where = f"round {self.planner.round} (t = {to_units(self.planner.t):.6f} {unit})"
@@ -282,10 +288,10 @@ class ClockRunner:
 
     def _wait_for_participants(self) -> None:
         deadline = time.monotonic() + self.spec.startup_timeout_s
-        while not (everyone := self.participants | self.observers) <= self._alive:
+        while not self.members <= self._alive:
             item = self._next(deadline - time.monotonic())
             if item is None:
-                missing = sorted(everyone - self._alive)
+                missing = sorted(self.members - self._alive)
                 raise NodeFault(
                     f"nodes {missing} did not come alive within {self.spec.startup_timeout_s} s"
                 )
@@ -309,7 +315,7 @@ class ClockRunner:
             tick = self._stamp_injections(planner.tick())
             sync = tick.round % SYNC_ROUNDS == 0
             if tick.round == 0:
-                who = self.participants | self.observers
+                who = self.members
             else:
                 who = self.participation.of(tick.t, tick.expected) & self.participants
                 if sync:
@@ -324,12 +330,12 @@ class ClockRunner:
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
             cancelled: str | None = None
-            while not (who & (members := self.participants | self.observers)) <= set(dones):
+            while not (who & self.members) <= set(dones):
                 item = self._next(deadline - time.monotonic())
                 if item is None:
                     if cancelled is not None:
                         raise NodeFault(cancelled)
-                    silent = sorted((who & members) - set(dones))
+                    silent = sorted((who & self.members) - set(dones))
                     raise NodeFault(
                         f"node(s) {silent} did not answer round {tick.round} "
                         f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
@@ -365,7 +371,7 @@ class ClockRunner:
             t_before = planner.t
             published: dict[str, int] = {}
             for node, done in sorted(dones.items()):
-                if node not in self.participants | self.observers:
+                if node not in self.members:
                     continue  # dropped during the round
                 self.ticked[node] = self.ticked.get(node, 0) + 1
                 if node in self.participants:  # an observer's answer says nothing of its rounds
@@ -395,7 +401,7 @@ class ClockRunner:
     def _wait_for_exit(self, timeout: float) -> None:
         """Give the participants time to see the Stop and leave (the historian flushes)."""
         deadline = time.monotonic() + timeout
-        while self._alive & (self.participants | self.observers):
+        while self._alive & self.members:
             item = self._next(deadline - time.monotonic())
             if item is None:
                 return

@@ -151,7 +151,7 @@ class BusNode:
         session = self.ctx.session
         control = [keys.tick_and_stop()] if self.observer else [self._tick_key, keys.stop()]
         declared = [
-            session.declare_subscriber(keys.full(self.run_id, rel), self._enqueue("control"))
+            session.declare_subscriber(keys.full(self.run_id, rel), self._on_control)
             for rel in control
         ]
         for pattern in self.behaviour.patterns:
@@ -274,13 +274,9 @@ class BusNode:
         )
 
     # -- collection ------------------------------------------------------------------------------
-    def _enqueue(self, kind: str) -> Callable[[zenoh.Sample], None]:
-        q = self._queue
-
-        def callback(sample: zenoh.Sample) -> None:
-            q.put((kind, str(sample.key_expr), sample.payload.to_bytes()))
-
-        return callback
+    def _on_control(self, sample: zenoh.Sample) -> None:
+        """Zenoh's callback for the clock's tick or stop: onto the loop's queue."""
+        self._queue.put(("control", str(sample.key_expr), sample.payload.to_bytes()))
 
     def _on_data(self, sample: zenoh.Sample) -> None:
         """Zenoh's callback for a data message: check it and file it under its round; wake the

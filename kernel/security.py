@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from core.errors import ConfigError
+from kernel.files import write_private
 from kernel.tls import CA_CERT, ClientTls, client_link, is_tls, router_link, write_tls
 
 __all__ = [
@@ -166,14 +167,6 @@ def access_control(
     }
 
 
-def _write_private(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` readable and writable by its owner only (mode 0600)."""
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.chmod(path, 0o600)
-
-
 def credential_path(directory: Path, name: str) -> Path:
     """The credential file of identity ``name`` in security directory ``directory``."""
     return directory / f"{name}.json"
@@ -213,14 +206,14 @@ def write_security(
         data: dict[str, Any] = {"user": cred.user, "password": cred.password}
         if cred.tls is not None:
             data["tls"] = {"ca": cred.tls.ca, "cert": cred.tls.cert, "key": cred.tls.key}
-        _write_private(
+        write_private(
             credential_path(directory, name), json.dumps(data, indent=1 if tls else None) + "\n"
         )
-    _write_private(
+    write_private(
         directory / _DICTIONARY, "".join(f"{c.user}:{c.password}\n" for c in creds.values())
     )
     acl = access_control(grants, everything=everything, by_certificate=tls)
-    _write_private(directory / _ACL, json.dumps(acl, indent=1) + "\n")
+    write_private(directory / _ACL, json.dumps(acl, indent=1) + "\n")
     return creds
 
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 import base64
 import datetime
 import ipaddress
-import os
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -41,6 +40,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from core.errors import ConfigError
+from kernel.files import write_private
 
 __all__ = [
     "LOOPBACK_NAMES",
@@ -85,11 +85,8 @@ class Pair:
 
 
 @dataclass(frozen=True)
-class RunCa:
+class RunCa(Pair):
     """The run's certificate authority: its key and its self-signed certificate (PEM)."""
-
-    key: str
-    cert: str
 
 
 def _pem_key(key: ec.EllipticCurvePrivateKey) -> str:
@@ -117,7 +114,7 @@ def router_names(names: Iterable[str] = ()) -> tuple[str, ...]:
         name = name.strip().strip("[]")
         if not (_is_ip(name) or _DNS.fullmatch(name)):
             raise ConfigError(f"--tls-name {name!r}: not a host name or an IP address")
-        key = str(ipaddress.ip_address(name)) if _is_ip(name) else name.lower()
+        key = _canonical(name)
         if key not in out:
             out.append(key)
     return tuple(out)
@@ -127,6 +124,12 @@ _DNS = re.compile(
     r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?"
     r"(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*"
 )
+
+
+def _canonical(name: str) -> str:
+    """A host name as a certificate's alternative names hold it: an IP address in its
+    standard text, a DNS name in lower case."""
+    return str(ipaddress.ip_address(name)) if _is_ip(name) else name.lower()
 
 
 def _is_ip(name: str) -> bool:
@@ -226,18 +229,7 @@ def alt_names(cert_pem: str) -> set[str]:
 def covers(cert_pem: str, names: Iterable[str]) -> bool:
     """Whether the certificate's alternative names include every one of ``names``."""
     have = alt_names(cert_pem)
-    for name in names:
-        name = name.strip("[]")
-        if (str(ipaddress.ip_address(name)) if _is_ip(name) else name.lower()) not in have:
-            return False
-    return True
-
-
-def _write_private(path: Path, text: str) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.chmod(path, 0o600)
+    return all(_canonical(name.strip("[]")) in have for name in names)
 
 
 def write_tls(
@@ -250,10 +242,10 @@ def write_tls(
     credential file). The identity ``router`` gets the routers' pair."""
     ca = new_ca(ca_name)
     router = issue(ca, "router", names=router_names(names), server=True)
-    _write_private(directory / CA_CERT, ca.cert)
-    _write_private(directory / CA_KEY, ca.key)
-    _write_private(directory / ROUTER_CERT, router.cert)
-    _write_private(directory / ROUTER_KEY, router.key)
+    write_private(directory / CA_CERT, ca.cert)
+    write_private(directory / CA_KEY, ca.key)
+    write_private(directory / ROUTER_CERT, router.cert)
+    write_private(directory / ROUTER_KEY, router.key)
     return {
         name: router if name == "router" else issue(ca, name) for name in sorted(set(identities))
     }

@@ -238,7 +238,7 @@ class PlantBehaviour(Behaviour):
         low, high = self.spec.input_range[index] if self.spec.input_range else (-inf, inf)
 
         def apply(env: RawEnvelope, move: Move) -> None:
-            value = low if move.value < low else (high if move.value > high else move.value)
+            value = min(max(move.value, low), high)  # the actuator saturates
             self._integrate_to(self.now)
             before = float(self.u[index])
             self._applied.append(

@@ -11,7 +11,6 @@ one PNG per loop, and ``logs/`` with each process's log.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import secrets
@@ -35,7 +34,7 @@ from kernel.bus import DEFAULT_LISTEN, is_put, open_client
 from kernel.clock import ClockRunner
 from kernel.lifetime import die_with_parent
 from kernel.router_process import RouterProcess
-from runtime.artefacts import REFUSED_LOG, RUN_FILE, SCENARIO_FILE
+from runtime.artefacts import REFUSED_LOG, RUN_FILE, SCENARIO_FILE, write_json
 from runtime.direct import simulate
 from runtime.forked import ForkServer
 from runtime.history import load_record
@@ -155,12 +154,6 @@ class _Progress:
         self.stream.flush()
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    tmp.replace(path)
-
-
 def launch(
     scenario_path: str | Path,
     out: str | Path,
@@ -218,7 +211,7 @@ def launch(
     }
     wall0 = time.perf_counter()
     if engine == "direct":
-        _write_json(out / RUN_FILE, run_info)
+        write_json(out / RUN_FILE, run_info)
         rec = simulate(scenario)
         rec.wall_s = time.perf_counter() - wall0
         save_record(rec, out)
@@ -282,10 +275,9 @@ def _launch_bus(
 ) -> RunResult:
     run_id = run_info["run_id"]
     listen = listen or DEFAULT_LISTEN
+    hosts = listen_names(listen)
     security = (
-        None
-        if insecure
-        else prepare_security(out, scenario, run_id, tls=tls, tls_names=listen_names(listen))
+        None if insecure else prepare_security(out, scenario, run_id, tls=tls, tls_names=hosts)
     )
     warn_insecure(listen, secure=security is not None)
     names = ["clock", *scenario.participants()]
@@ -319,7 +311,7 @@ def _launch_bus(
             server.abandon()
         raise
     locators = router.locators
-    endpoint = pick_endpoint(locators, listen, listen_names(listen))
+    endpoint = pick_endpoint(locators, listen, hosts)
     try:  # the launcher's own session: it shows the run's progress
         watch = open_client(
             endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
@@ -332,7 +324,7 @@ def _launch_bus(
     run_info["endpoint"] = endpoint
     run_info["secure"] = security is not None
     run_info["tls"] = tls
-    _write_json(out / RUN_FILE, run_info)
+    write_json(out / RUN_FILE, run_info)
     if on_start is not None:
         on_start(out)
     prog = _Progress(run_id, scenario, progress)
@@ -418,7 +410,7 @@ def _run_processes(
             procs = dict(server.children)  # those forked are stopped below
             return 1, str(err), None
         run_info["nodes"] = {n: p.pid for n, p in procs.items()}
-        _write_json(out / RUN_FILE, run_info)
+        write_json(out / RUN_FILE, run_info)
         clock = procs["clock"]
         try:
             _wait_for_clock(clock, procs, names, logs, prog)

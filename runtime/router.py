@@ -32,7 +32,7 @@ from core.errors import ConfigError
 from kernel.audit import LogCapture, Refused
 from kernel.bus import open_router
 from kernel.security import SECURITY_DIR, router_settings
-from runtime.artefacts import REFUSED_LOG, RUN_FILE
+from runtime.artefacts import REFUSED_LOG, RUN_FILE, write_json
 from runtime.scenario import load_scenario
 from runtime.security import check_tls, listen_names, pick_endpoint, prepare, warn_insecure
 
@@ -206,9 +206,7 @@ def serve_router(
     info.setdefault("routers", []).append(
         {"endpoint": endpoint, "zid": zid, "locators": list(locators)}
     )
-    tmp = out / (RUN_FILE + ".tmp")
-    tmp.write_text(json.dumps(info, indent=1) + "\n")
-    tmp.replace(out / RUN_FILE)
+    write_json(out / RUN_FILE, info)
     audit = (
         f"; refused attempts go to {out / REFUSED_LOG}"
         if capture

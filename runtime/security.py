@@ -11,8 +11,7 @@ there); ``dashboard`` may put exactly ``ops/inject`` too, and read the run (it s
 ``launcher`` (``wncs run``'s own session, for its progress line) reads the ticks and the stop
 and watches who is alive. The historian reads everything and publishes nothing. Every
 publisher may learn of every subscription in the run (``matches``): a zenoh 1.10 client's
-declared publisher sends nothing to a router that has not told it of a matching subscriber,
-and the historian's is ``wncs/<run>/**``.
+declared publisher sends nothing to a router that has not told it of a matching subscriber.
 :func:`prepare` writes the credentials and the access control under ``<run dir>/security``
 (:mod:`kernel.security`).
 """
@@ -151,7 +150,7 @@ def check_tls(listen: str, *, tls: bool, insecure: bool) -> None:
 def listen_names(listen: str) -> tuple[str, ...]:
     """The host a listen endpoint names, for the routers' certificate: none for a wildcard
     (``0.0.0.0``, ``[::]``: give the host's names with ``--tls-name``)."""
-    host = listen.partition("/")[2].rpartition(":")[0].strip("[]")
+    host = name_of_endpoint(listen)
     if not host or host in ("0.0.0.0", "::"):
         return ()
     return (host,)

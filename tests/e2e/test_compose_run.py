@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import yaml
 
 from runtime.history import messages_digest
 from tests.conftest import BENCHMARK, ROOT, wait_until
+from tests.e2e.test_routers import stop_all
 from tests.e2e.test_runs import WNCS, wncs_run
 
 pytestmark = pytest.mark.slow
@@ -80,14 +80,7 @@ def test_the_compose_services_run_a_secure_run_equal_to_the_launchers(tmp_path):
         for name in services:
             assert procs[name].wait(timeout=60) == 0, (logs / f"{name}.log").read_text()[-2000:]
     finally:
-        for p in procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        for p in procs.values():
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_all(list(procs.values()))
     said = (logs / "router.log").read_text()
     assert "(secure)" in said and "it refused 0 attempts" in said
     history = runs / "compose" / "history.sqlite"

@@ -9,6 +9,7 @@ import json
 import os
 import signal
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -27,13 +28,47 @@ from tests.e2e.test_runs import WNCS, assert_same_traces, traces, wncs_run
 pytestmark = pytest.mark.slow
 
 
-def _router(out: Path, log: Path, *extra: str) -> subprocess.Popen:
+def wncs_router(
+    out: Path, log: Path, *extra: str, listen: str = "tcp/127.0.0.1:0"
+) -> subprocess.Popen:
+    """``wncs router`` for the benchmark's run in ``out``, its output to ``log``."""
     cmd = [*WNCS, "router", "--scenario", str(BENCHMARK), "--out", str(out)]
-    cmd += ["--listen", "tcp/127.0.0.1:0", *extra]
+    cmd += ["--listen", listen, *extra]
     return subprocess.Popen(cmd, stdout=log.open("w"), stderr=subprocess.STDOUT)
 
 
-def _stop(procs: list[subprocess.Popen]) -> None:
+def chain_two_routers(
+    out: Path,
+    logs: Path,
+    procs: list[subprocess.Popen],
+    *,
+    listen: str = "tcp/127.0.0.1:0",
+    first: tuple[str, ...] = (),
+    second: tuple[str, ...] = (),
+    reach: Callable[[str], str] = lambda endpoint: endpoint,
+) -> dict:
+    """Two ``wncs router`` processes of one run in ``out`` (appended to ``procs``, for the
+    caller to stop): the first with options ``first``, then the second with ``second``, joined
+    to the first at ``reach(its endpoint)``. Returns ``run.json`` once both are in it."""
+    run_file = out / "run.json"
+
+    def routers() -> list[dict]:
+        for p in procs:
+            assert p.poll() is None, [f.read_text() for f in logs.glob("router_*.log")]
+        return json.loads(run_file.read_text()).get("routers", []) if run_file.exists() else []
+
+    procs.append(wncs_router(out, logs / "router_a.log", *first, listen=listen))
+    wait_until(lambda: len(routers()) == 1, timeout=60, what="the first router")
+    joined = reach(routers()[0]["endpoint"])
+    procs.append(
+        wncs_router(out, logs / "router_b.log", "--connect", joined, *second, listen=listen)
+    )
+    wait_until(lambda: len(routers()) == 2, timeout=60, what="the second router")
+    return json.loads(run_file.read_text())
+
+
+def stop_all(procs: list[subprocess.Popen]) -> None:
+    """SIGTERM each process still running, then wait for each (killed after 20 s)."""
     for p in procs:
         if p.poll() is None:
             p.send_signal(signal.SIGTERM)
@@ -70,28 +105,16 @@ def test_a_run_over_two_chained_routers_equals_the_single_router_run(tmp_path):
     out = tmp_path / "chained"
     logs = tmp_path / "logs"
     logs.mkdir()
-    run_file = out / "run.json"
-
-    def routers() -> list[dict]:
-        for p in procs:
-            assert p.poll() is None, (logs / "router_a.log").read_text()
-        return json.loads(run_file.read_text()).get("routers", []) if run_file.exists() else []
-
     procs: list[subprocess.Popen] = []
     nodes: dict[str, subprocess.Popen] = {}
     try:
-        procs.append(_router(out, logs / "router_a.log"))
-        wait_until(lambda: len(routers()) == 1, timeout=60, what="the first router")
-        first = routers()[0]["endpoint"]
-        procs.append(_router(out, logs / "router_b.log", "--connect", first))
-        wait_until(lambda: len(routers()) == 2, timeout=60, what="the second router")
-        info = json.loads(run_file.read_text())
+        info = chain_two_routers(out, logs, procs)
         assert info["secure"]
         endpoints = [r["endpoint"] for r in info["routers"]]
         assert len(set(endpoints)) == 2
         run_nodes_split(out, logs, info["run_id"], endpoints, nodes)
     finally:
-        _stop([*nodes.values(), *procs])
+        stop_all([*nodes.values(), *procs])
     history = out / "history.sqlite"
     assert messages_digest(history) == messages_digest(tmp_path / "single" / "history.sqlite")
     rec = load_record(history, load_scenario(BENCHMARK), engine="threads")
@@ -104,7 +127,7 @@ def test_a_standalone_router_says_and_logs_what_it_refuses(tmp_path):
     router's terminal says the first of each kind and, when it stops, the total."""
     out = tmp_path / "run"
     log = tmp_path / "router.log"
-    router = _router(out, log)
+    router = wncs_router(out, log)
     try:
         run_file = out / "run.json"
         wait_until(
@@ -128,7 +151,7 @@ def test_a_standalone_router_says_and_logs_what_it_refuses(tmp_path):
         )
         intruder.close()
     finally:
-        _stop([router])
+        stop_all([router])
     said = log.read_text()
     assert f"refused attempts go to {refused}" in said
     assert f"refused reactor: Put (ingress) on {tick} (1 so far)" in said

@@ -33,8 +33,8 @@ from runtime.security import (
     pick_endpoint,
     prepare,
 )
-from tests.conftest import BENCHMARK, wait_until
-from tests.e2e.test_routers import _stop, run_nodes_split
+from tests.conftest import BENCHMARK
+from tests.e2e.test_routers import chain_two_routers, run_nodes_split, stop_all
 from tests.e2e.test_runs import WNCS, wncs_run
 
 pytestmark = pytest.mark.slow
@@ -184,12 +184,6 @@ def test_inject_and_the_dashboard_log_in_over_tls(tls_router):
         clock.close()
 
 
-def _router(out: Path, log: Path, *extra: str) -> subprocess.Popen:
-    cmd = [*WNCS, "router", "--scenario", str(BENCHMARK), "--out", str(out)]
-    cmd += ["--listen", TLS_LISTEN, *extra]
-    return subprocess.Popen(cmd, stdout=log.open("w"), stderr=subprocess.STDOUT)
-
-
 def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path, plain_run):
     """``wncs router --tls`` makes the run; a second router joins it over TLS (mutual: it shows
     the routers' certificate), reaching it by a host name (``localhost``: its certificate must
@@ -199,26 +193,23 @@ def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path,
     out = tmp_path / "chained"
     logs = tmp_path / "logs"
     logs.mkdir()
-    run_file = out / "run.json"
 
-    def routers() -> list[dict]:
-        for p in procs:
-            assert p.poll() is None, [f.read_text() for f in logs.glob("router_*.log")]
-        return json.loads(run_file.read_text()).get("routers", []) if run_file.exists() else []
+    def by_name(first: str) -> str:
+        assert first.startswith("tls/127.0.0.1:")
+        return first.replace("127.0.0.1", "localhost")  # a DNS name of the first one's host
 
     procs: list[subprocess.Popen] = []
     nodes: dict[str, subprocess.Popen] = {}
     try:
-        procs.append(_router(out, logs / "router_a.log", "--tls", "--tls-name", "a.wncs.test"))
-        wait_until(lambda: len(routers()) == 1, timeout=60, what="the first router")
-        first = routers()[0]["endpoint"]
-        assert first.startswith("tls/127.0.0.1:")
-        by_name = first.replace("127.0.0.1", "localhost")  # a DNS name of the first one's host
-        procs.append(
-            _router(out, logs / "router_b.log", "--connect", by_name, "--tls-name", "b.wncs.test")
+        info = chain_two_routers(
+            out,
+            logs,
+            procs,
+            listen=TLS_LISTEN,
+            first=("--tls", "--tls-name", "a.wncs.test"),
+            second=("--tls-name", "b.wncs.test"),
+            reach=by_name,
         )
-        wait_until(lambda: len(routers()) == 2, timeout=60, what="the second router")
-        info = json.loads(run_file.read_text())
         assert info["secure"] and info["tls"]
         assert "a.wncs.test" in alt_names((out / SECURITY_DIR / "router.pem").read_text())
         assert "b.wncs.test" not in alt_names((out / SECURITY_DIR / "router.pem").read_text())
@@ -226,7 +217,7 @@ def test_a_tls_run_over_two_chained_routers_has_the_plain_runs_history(tmp_path,
         assert len(set(endpoints)) == 2 and all(e.startswith("tls/") for e in endpoints)
         run_nodes_split(out, logs, info["run_id"], endpoints, nodes)
     finally:
-        _stop([*nodes.values(), *procs])
+        stop_all([*nodes.values(), *procs])
     said = (logs / "router_b.log").read_text()
     assert "(secure, TLS)" in said, said
     digest = messages_digest(out / "history.sqlite")
