@@ -67,7 +67,7 @@ def main() -> None:
             env = codec.decode(sample.payload.to_bytes(), Sample)
             arrivals.append((now, env.t))
 
-        session.declare_subscriber(keys.full(info["run_id"], keys.tick()), on_tick)
+        session.declare_subscriber(keys.full(info["run_id"], keys.tick_log()), on_tick)
         session.declare_subscriber(keys.full(info["run_id"], "loop/*/meas"), on_meas)
         runner.join()
         session.close()

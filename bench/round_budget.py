@@ -7,11 +7,12 @@ a round alone, in one thread, and multiplies by how often a run does it:
 
 * from a real threads run of the scenario (default the JCSTR benchmark): the rounds, the data
   messages, their deliveries (each message to the historian and to every node listening to its
-  key), the nodes' participations (``Stop.rounds_taken``) and the ticks: one on ``clock/tick``
-  (the historian's) and one per node taking part (``clock/tick/<node>``), plus one to every node
-  every ``kernel.clock.SYNC_ROUNDS`` rounds. (The historian subscribed to ``**`` until it took
-  the data keys alone, :func:`bus_schemas.keys.data_all`: it also woke for every addressed tick
-  and every Done, to drop them);
+  key), the nodes' participations (``Stop.rounds_taken``) and the ticks: one per node taking
+  part (``clock/tick/<node>``), plus one to every node every ``kernel.clock.SYNC_ROUNDS``
+  rounds, and the clock's logs of ticks (``clock/log``, counted in the run: the historian's and
+  the progress line's; until they took the log, each woke for every tick). (The historian
+  subscribed to ``**`` until it took the data keys alone, :func:`bus_schemas.keys.data_all`:
+  it also woke for every addressed tick and every Done, to drop them);
 * unit costs, median of many: encoding a message (``model_dump`` + msgpack), decoding and
   validating one (envelope + body), a zenoh ``put`` (the call alone; batched, as the nodes and
   the clock publish, and ``express`` as they did before: an immediate write per message, 60
@@ -49,9 +50,9 @@ from pathlib import Path
 
 from engines import round_trip_ms, rounds_of
 
-from bus_schemas import Done, Tick, codec
+from bus_schemas import Done, Stop, Tick, codec
 from kernel.bus import open_client, open_router
-from kernel.clock import SYNC_ROUNDS
+from kernel.clock import SYNC_ROUNDS, ClockRunner
 from kernel.router_process import RouterProcess
 from runtime.direct import behaviour_of
 from runtime.history import connect
@@ -183,8 +184,19 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
     scenario = load_scenario(scenario_path)
     names = scenario.participants()
     behaviours = {n: behaviour_of(scenario, n) for n in names if n != "historian"}
+    logs = [0]
+    publish_log = ClockRunner._publish_log
+
+    def counted(self: ClockRunner, stop: Stop | None = None) -> None:
+        logs[0] += 1
+        publish_log(self, stop)
+
+    ClockRunner._publish_log = counted  # type: ignore[method-assign]
     with tempfile.TemporaryDirectory() as tmp:
-        res = launch(scenario_path, Path(tmp) / "run", engine="threads")
+        try:
+            res = launch(scenario_path, Path(tmp) / "run", engine="threads")
+        finally:
+            ClockRunner._publish_log = publish_log  # type: ignore[method-assign]
         if res.code != 0:
             raise SystemExit(res.error)
         rounds = rounds_of(Path(tmp) / "run")
@@ -195,8 +207,8 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
         run_ms = res.summary["phases_s"]["run"] * 1e3
     rounds_taken = json.loads(stop)["rounds_taken"]
     taken = sum(rounds_taken.values())
-    # ticks addressed to the round's nodes (clock/tick/<node>; the historian takes clock/tick),
-    # and to every node every SYNC_ROUNDS rounds
+    # ticks addressed to the round's nodes (clock/tick/<node>; the historian takes the clock's
+    # log), and to every node every SYNC_ROUNDS rounds
     addressed = (taken - rounds_taken.get("historian", 0)) / rounds + (len(names) - 1) / SYNC_ROUNDS
     listeners = {
         k: 1 + sum(b.listens_to(k) for b in behaviours.values()) for k in set(msg_keys)
@@ -206,10 +218,13 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
         "messages published (encode + put)": len(msg_keys) / rounds,
         "Done answers (encode + put; clock: 2 hops + decode)": taken / rounds,
         "message deliveries (callback hop + decode, filed there)": deliveries / rounds,
-        "ticks put (clock/tick and one per addressee)": 1 + addressed,
+        "ticks put (one per addressee, and the clock's logs)": addressed + logs[0] / rounds,
         "tick deliveries to their nodes (2 hops + decode)": addressed,
-        "the historian's tick (2 hops; it answers sync rounds only)": 1,
-        "historian rows (insert) and commits": (len(msg_keys) + rounds) / rounds,
+        "the clock's log to the historian and the progress line (2 hops + decode each)": 2
+        * logs[0]
+        / rounds,
+        "historian rows (insert)": (len(msg_keys) + rounds) / rounds,
+        "historian commits (one per log)": logs[0] / rounds,
     }
     return per_round, run_ms / rounds, rounds
 
@@ -233,11 +248,13 @@ def main() -> None:
         + unit["decode"],
         "message deliveries (callback hop + decode, filed there)": unit["queue hop"]
         + unit["decode"],
-        "ticks put (clock/tick and one per addressee)": unit["zenoh put"],
-        "tick deliveries to their nodes (2 hops + decode)": 2 * unit["queue hop"]
+        "ticks put (one per addressee, and the clock's logs)": unit["zenoh put"],
+        "tick deliveries to their nodes (2 hops + decode)": 2 * unit["queue hop"] + unit["decode"],
+        "the clock's log to the historian and the progress line (2 hops + decode each)": 2
+        * unit["queue hop"]
         + unit["decode"],
-        "the historian's tick (2 hops; it answers sync rounds only)": 2 * unit["queue hop"],
-        "historian rows (insert) and commits": unit["sqlite insert"],
+        "historian rows (insert)": unit["sqlite insert"],
+        "historian commits (one per log)": unit["sqlite commit"],
     }
     print(f"\n{args.scenario.name}, threads engine: {rounds} rounds")
     print("| part of a round | per round | us each | us per round |")
@@ -245,8 +262,6 @@ def main() -> None:
     total = 0.0
     for what, n in per_round.items():
         us = n * cost[what]
-        if what.startswith("historian"):
-            us += unit["sqlite commit"]  # one commit per round (the tick)
         total += us
         print(f"| {what} | {n:.2f} | {cost[what]:.1f} | {us:.0f} |")
     print(f"| the tick's encoding (once) | 1 | {unit['encode']:.1f} | {unit['encode']:.0f} |")

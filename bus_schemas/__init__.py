@@ -28,6 +28,7 @@ from bus_schemas.bodies import (
     Setpoint,
     Stop,
     Tick,
+    TickLog,
     Timing,
     TschCapacity,
 )
@@ -56,6 +57,7 @@ __all__ = [
     "Setpoint",
     "Stop",
     "Tick",
+    "TickLog",
     "Timing",
     "TschCapacity",
     "ScheduleSummary",

@@ -34,6 +34,7 @@ __all__ = [
     "InjectRequest",
     "NetworkEvent",
     "Tick",
+    "TickLog",
     "Done",
     "Stop",
     "MonitorHarris",
@@ -490,6 +491,17 @@ class Stop(BaseModel):
         default_factory=dict,
         description="node -> rounds it took part in (sparse rounds: the others it sat out)",
     )
+
+
+class TickLog(BaseModel):
+    """The clock's ticks since its last log, in order, and its ``Stop`` when the run has
+    ended: what the observers (the historian) and watchers of the run's progress take
+    (``clock/log``), a few times a second rather than once a round."""
+
+    model_config = _FROZEN
+
+    ticks: tuple[Tick, ...]
+    stop: Stop | None = None
 
 
 class MonitorHarris(BaseModel):

@@ -23,7 +23,7 @@ __all__ = [
     "done",
     "done_all",
     "stop",
-    "tick_and_stop",
+    "tick_log",
     "alive",
     "alive_all",
     "sensor",
@@ -124,6 +124,8 @@ def data_all() -> tuple[str, ...]:
 
 
 def tick() -> str:
+    """The root of the ticks addressed to nodes (``clock/tick/<node>``); every tick is logged
+    on :func:`tick_log`."""
     return "clock/tick"
 
 
@@ -145,11 +147,12 @@ def stop() -> str:
     return "clock/stop"
 
 
-def tick_and_stop() -> str:
-    """``clock/tick`` and ``clock/stop`` in one key expression: an observer (the historian) takes
-    both with one subscription, so that it sees them in the order the clock sent them (zenoh's
-    Python callbacks run in a thread per subscriber: two subscriptions have no common order)."""
-    return "clock/*"
+def tick_log() -> str:
+    """Where the clock publishes its log of ticks (``TickLog``: every tick since the last log,
+    and the stop at the end) for the observers and the run's watchers: ``clock/log``. One key
+    carries both, so an observer sees the stop after every tick (zenoh's Python callbacks run
+    in a thread per subscriber: two subscriptions have no common order)."""
+    return "clock/log"
 
 
 def alive(node: str) -> str:

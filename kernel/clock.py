@@ -18,7 +18,7 @@ from typing import Any
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import Done, InjectRequest, Stop, Tick, codec, keys
+from bus_schemas import Done, InjectRequest, Stop, Tick, TickLog, codec, keys
 from bus_schemas.errors import SchemaError
 from core.errors import NodeFault, ProtocolError
 from core.rounds import Participation, RoundPlanner, merge_dropped
@@ -51,10 +51,11 @@ class ClockSpec:
     may_drop: frozenset[str] = frozenset()
     max_rounds: int = 100_000_000
     observers: frozenset[str] = frozenset()
-    """Participants that take every tick on ``clock/tick`` and handle every round's messages but
-    answer only the sync rounds (:data:`SYNC_ROUNDS`): the historian. No other round waits for
-    them, so they keep off its critical path; the sync rounds bound how far they may lag.
-    Liveliness covers them like any participant, and the clock waits for them to leave."""
+    """Participants that take every tick from the clock's log (``clock/log``, :class:`TickLog`)
+    and handle every round's messages but answer only the sync rounds (:data:`SYNC_ROUNDS`):
+    the historian. No other round waits for them, so they keep off its critical path; the sync
+    rounds bound how far they may lag. Liveliness covers them like any participant, and the
+    clock waits for them to leave."""
 
 
 log = logging.getLogger(__name__)
@@ -63,6 +64,14 @@ SYNC_ROUNDS = 256
 """Every this many rounds the tick goes to every node, whether it takes part or not: a node that
 sits rounds out then still knows the round within this many (the data it may keep ahead of its
 last tick, :data:`kernel.node._AHEAD`, is more)."""
+
+LOG_TICKS = 64
+LOG_S = 0.1
+"""The clock logs its ticks (``clock/log``) in batches: at a sync round (the observers answer
+it), when :data:`LOG_TICKS` ticks wait or the oldest has waited :data:`LOG_S` s of wall time,
+with the ``Stop``, and every round of a real-time run. An observer that woke for every tick
+cost the rounds' critical path about a tenth (its thread and the node's share two cores and,
+in the threads engine, one interpreter lock: ``bench/round_budget.py``)."""
 
 CANCEL_GRACE_S = 5.0
 """A run cancelled mid-round (Ctrl-C) ends that round first, waiting this long at most for its
@@ -130,6 +139,8 @@ class ClockRunner:
         self.dropped_nodes: list[dict[str, Any]] = []
         self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
         self._cancelled: str | None = None  # the reason given to cancel(), if any
+        self._log: list[Tick] = []  # ticks not yet logged on clock/log
+        self._log_since = 0.0  # monotonic time the oldest of them was logged
 
     @property
     def members(self) -> frozenset[str]:
@@ -149,10 +160,35 @@ class ClockRunner:
         self._put([rel], self._envelope(body, round, self.planner.t if t is None else t))
 
     def _publish_tick(self, tick: Tick, to: frozenset[str]) -> None:
-        """Publish ``tick`` on ``clock/tick`` (the nodes that take every tick, observers) and on
-        ``clock/tick/<node>`` for each node of ``to`` but those."""
-        rels = [keys.tick()] + [keys.tick_to(n) for n in sorted(to - self.observers)]
-        self._put(rels, self._envelope(tick, tick.round, tick.t))
+        """Publish ``tick`` on ``clock/tick/<node>`` for each node of ``to`` but the observers,
+        and log it (:data:`LOG_TICKS`)."""
+        if not self._log:
+            self._log_since = time.monotonic()
+        self._log.append(tick)
+        rels = [keys.tick_to(n) for n in sorted(to - self.observers)]
+        if rels:
+            self._put(rels, self._envelope(tick, tick.round, tick.t))
+        if (
+            tick.round % SYNC_ROUNDS == 0
+            or len(self._log) >= LOG_TICKS
+            or self.pacer is not None
+            or time.monotonic() - self._log_since >= LOG_S
+        ):
+            self._publish_log()
+
+    def _publish_log(self, stop: Stop | None = None) -> None:
+        """Publish the ticks logged since the last log (and ``stop``) on ``clock/log``."""
+        if not self._log and stop is None:
+            return
+        last: Tick | Stop = stop if stop is not None else self._log[-1]
+        payload = self._envelope(TickLog(ticks=tuple(self._log), stop=stop), last.round, last.t)
+        self._put([keys.tick_log()], payload)
+        self._log.clear()
+
+    def _publish_stop(self, stop: Stop) -> None:
+        """End the run: the last ticks and the stop on ``clock/log``, the stop on ``clock/stop``."""
+        self._publish_log(stop)
+        self._publish(keys.stop(), stop)
 
     def _envelope(self, body: BaseModel, round: int, t: int) -> bytes:
         """``body`` as the clock's next message of round ``round`` at ``t``."""
@@ -254,13 +290,13 @@ class ClockRunner:
             try:
                 self._wait_for_participants()
                 self._rounds()
-                self._publish(keys.stop(), self._stop(ok=True))
+                self._publish_stop(self._stop(ok=True))
                 log.info("run finished at round %d", self.planner.round)
                 code = 0
             except (NodeFault, ProtocolError, TimeoutError) as err:
                 self.error = str(err)
                 (log.info if str(err) == self._cancelled else log.error)("%s", err)
-                self._publish(keys.stop(), self._stop(ok=False, reason=str(err)))
+                self._publish_stop(self._stop(ok=False, reason=str(err)))
                 code = 3
             self._wait_for_exit(timeout=self.spec.round_timeout_s)
             return code

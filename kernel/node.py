@@ -33,7 +33,7 @@ from typing import Any
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import Done, Stop, Tick, codec, keys
+from bus_schemas import Done, Stop, Tick, TickLog, codec, keys
 from bus_schemas.envelope import RawEnvelope
 from bus_schemas.errors import SchemaError
 from core.behaviour import Behaviour
@@ -119,16 +119,16 @@ class BusNode:
 
     observer = False
     """Whether the node observes every round (:attr:`kernel.clock.ClockSpec.observers`: the
-    historian): it takes every tick (``clock/tick``), collects and handles each round's messages,
-    and answers (``Done``) only the rounds it is ticked for, the clock's sync rounds. It takes
-    the ticks and the stop with one subscription (``clock/*``), so that a ``Stop`` comes after
-    every tick sent before it, and handles them in that order. The others take only their
-    ticks (``clock/tick/<name>``): those of the rounds they take part in, and one every
-    :data:`kernel.clock.SYNC_ROUNDS` rounds."""
+    historian): it takes every tick from the clock's log (``clock/log``, a few times a second,
+    the ``Stop`` last), collects and handles each round's messages, and answers (``Done``) only
+    the rounds it is ticked for, the clock's sync rounds. The others take only their ticks
+    (``clock/tick/<name>``): those of the rounds they take part in, and one every
+    :data:`kernel.clock.SYNC_ROUNDS` rounds; and the stop (``clock/stop``)."""
 
     @property
-    def _tick_key(self) -> str:
-        return keys.tick() if self.observer else keys.tick_to(self.name)
+    def _control_keys(self) -> tuple[str, ...]:
+        """The run-relative keys of the clock's messages to this node."""
+        return (keys.tick_log(),) if self.observer else (keys.tick_to(self.name), keys.stop())
 
     @property
     def round(self) -> int:
@@ -141,6 +141,9 @@ class BusNode:
     def on_tick(self, tick: Tick) -> None:
         """Called with every tick before collection (the historian records it)."""
 
+    def on_handled(self) -> None:
+        """Called after the ticks of one message of the clock (a log: several) are handled."""
+
     def on_stop(self, stop: Stop) -> None:
         """Called once when the clock ends the run."""
         self.behaviour.on_stop(stop.ok, stop.reason)
@@ -149,10 +152,9 @@ class BusNode:
     def run(self) -> int:
         """Serve rounds until the clock stops the run; return the process exit code."""
         session = self.ctx.session
-        control = [keys.tick_and_stop()] if self.observer else [self._tick_key, keys.stop()]
         declared = [
             session.declare_subscriber(keys.full(self.run_id, rel), self._on_control)
-            for rel in control
+            for rel in self._control_keys
         ]
         for pattern in self.behaviour.patterns:
             declared.append(
@@ -191,22 +193,31 @@ class BusNode:
                 raise ProtocolError(f"{self.name}: the clock left the run (round {self.round})")
             rel = keys.relative(self.run_id, key)
             try:
-                if rel not in (self._tick_key, keys.stop()):
-                    raise SchemaError("not a key of the clock's ticks or stop")
+                if rel not in self._control_keys:
+                    raise SchemaError("not a key of the clock's messages to this node")
                 env = self._control(payload)
-                if rel == keys.stop():
-                    stop = codec.decode_body(env, Stop)
-                    self.on_stop(stop)
-                    self.log.info("stopped by the clock: %s", stop.reason or "end of run")
-                    return 0
-                tick = codec.decode_body(env, Tick)
+                if rel == keys.tick_log():
+                    log_ = codec.decode_body(env, TickLog)
+                    ticks, stop = log_.ticks, log_.stop
+                elif rel == keys.stop():
+                    ticks, stop = (), codec.decode_body(env, Stop)
+                else:
+                    ticks, stop = (codec.decode_body(env, Tick),), None
             except SchemaError as err:
                 self._reject(rel, str(err))
                 continue
             try:
-                self._round_(tick)
-            except _StopRequested as stop:
-                self._backlog.insert(0, ("control", stop.key, stop.payload))
+                for tick in ticks:
+                    self._round_(tick)
+            except _StopRequested as request:
+                self._backlog.insert(0, ("control", request.key, request.payload))
+                continue
+            finally:
+                self.on_handled()
+            if stop is not None:
+                self.on_stop(stop)
+                self.log.info("stopped by the clock: %s", stop.reason or "end of run")
+                return 0
 
     def _control(self, payload: bytes) -> RawEnvelope:
         """The envelope of a control message, if it is the clock's of this run (else
@@ -386,13 +397,10 @@ class BusNode:
                     continue
                 if kind == "clock_gone":
                     raise ProtocolError(f"{self.name}: the clock left during round {tick.round}")
-                if key.endswith("/" + keys.stop()):
-                    if self.observer:  # behind the rounds: the ticks before the Stop come first
-                        self._backlog.append((kind, key, payload))
-                    elif self._is_stop(key, payload):
-                        raise _StopRequested(key, payload)  # a fault elsewhere ended the run
-                else:
-                    self._backlog.append((kind, key, payload))
+                if not key.endswith("/" + keys.stop()):
+                    self._backlog.append((kind, key, payload))  # a later tick, the clock's log
+                elif self._is_stop(key, payload):
+                    raise _StopRequested(key, payload)  # a fault elsewhere ended the run
         finally:
             with self._lock:
                 self._awaiting = None

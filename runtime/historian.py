@@ -24,6 +24,7 @@ from runtime.artefacts import HISTORY_FILE
 
 __all__ = ["Recorder", "HistorianNode", "HISTORY_FILE"]
 
+
 class Recorder(Behaviour):
     """Writes every data message it is handed (subscribed to every data key,
     :func:`bus_schemas.keys.data_all`) into an open history database."""
@@ -64,12 +65,16 @@ class HistorianNode(BusNode):
         )
 
     def on_tick(self, tick: Tick) -> None:
-        """Record the tick and commit: every message of the rounds before is on disk (WAL), so
-        a run cut short keeps all but its last round."""
+        """Record the tick (its round's messages follow)."""
         self.db.execute(
             "INSERT INTO ticks (round, t, expected) VALUES (?, ?, ?)",
             (tick.round, tick.t, json.dumps(tick.expected, sort_keys=True)),
         )
+
+    def on_handled(self) -> None:
+        """Commit once the ticks of one log of the clock's are recorded: every message of the
+        rounds before them is then on disk (WAL), so a run cut short keeps all but the rounds
+        of the log under way and its last round."""
         self.db.commit()
 
     def on_stop(self, stop: Stop) -> None:

@@ -27,7 +27,7 @@ from typing import Any, TextIO
 
 import yaml
 
-from bus_schemas import Stop, Tick, codec, keys
+from bus_schemas import Stop, TickLog, codec, keys
 from core.errors import ConfigError, NodeFault, SchemaError
 from core.time import to_units
 from kernel.bus import DEFAULT_LISTEN, is_put, open_client
@@ -123,14 +123,16 @@ class _Progress:
         self.stop_at: float | None = None
         self.started: float | None = None  # perf_counter when every participant was alive
 
-    def on_tick(self, sample: Any) -> None:
+    def on_log(self, sample: Any) -> None:
+        """The clock's log of ticks (``clock/log``): how far the run has gone."""
         try:
-            tick = codec.decode(sample.payload.to_bytes(), Tick).body
+            ticks = codec.decode(sample.payload.to_bytes(), TickLog).body.ticks
         except SchemaError:  # a progress display never fails a run
             return
-        if self.first_tick_at is None:
+        if ticks and ticks[0].round == 0:  # logged at once (a sync round)
             self.first_tick_at = time.perf_counter()
-        self.t = to_units(tick.t)
+        if ticks:
+            self.t = to_units(ticks[-1].t)
 
     def on_stop(self, sample: Any) -> None:
         try:
@@ -329,7 +331,7 @@ def _launch_bus(
         on_start(out)
     prog = _Progress(run_id, scenario, progress)
     subs = [
-        watch.declare_subscriber(keys.full(run_id, keys.tick()), prog.on_tick),
+        watch.declare_subscriber(keys.full(run_id, keys.tick_log()), prog.on_log),
         watch.declare_subscriber(keys.full(run_id, keys.stop()), prog.on_stop),
         watch.liveliness().declare_subscriber(
             keys.full(run_id, keys.alive_all()), prog.on_alive, history=True

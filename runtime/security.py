@@ -78,23 +78,26 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
     for name in scenario.participants():
         out[name] = Grant(
             puts=full(*owned[name], keys.done(name)),
-            # every tick and the stop (clock/*: an observer takes both with one subscription),
-            # and (sparse rounds) the ticks addressed to it: clock/tick/<node>
-            subscribes=full(*reads[name], keys.tick_and_stop(), f"{keys.tick()}/{name}"),
+            # the ticks addressed to it (clock/tick/<node>) and the stop; the historian, an
+            # observer, the clock's log of every tick instead (clock/log, the stop last)
+            subscribes=full(
+                *reads[name],
+                *((keys.tick_log(),) if name == HISTORIAN else (keys.tick_to(name), keys.stop())),
+            ),
             tokens=full(keys.alive(name)),
             watches=full(keys.alive(CLOCK)),
             matches=full("**"),
         )
     out[CLOCK] = Grant(
-        puts=full(*owned[CLOCK], keys.tick(), f"{keys.tick()}/*", keys.stop()),
+        puts=full(*owned[CLOCK], keys.tick_log(), f"{keys.tick()}/*", keys.stop()),
         subscribes=full(keys.done_all(), keys.inject()),
         tokens=full(keys.alive(CLOCK)),
         watches=full(keys.alive_all()),
         matches=full("**"),
     )
     out[INJECT] = Grant(puts=full(keys.inject()), matches=full(keys.inject()))
-    out[LAUNCHER] = Grant(  # wncs run's progress line: the ticks, the stop, who is alive
-        subscribes=full(keys.tick(), keys.stop()), watches=full(keys.alive_all())
+    out[LAUNCHER] = Grant(  # wncs run's progress line: the clock's log, the stop, who is alive
+        subscribes=full(keys.tick_log(), keys.stop()), watches=full(keys.alive_all())
     )
     out[DASHBOARD] = Grant(
         puts=full(keys.inject()),

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
+from bus_schemas import Tick, TickLog, codec
 from kernel.bus import open_router
 from runtime.scenario import NODE_KINDS
 
@@ -60,6 +61,13 @@ def write_variant(tmp_path: Path, base: Path, name: str, edit) -> Path:
     path = tmp_path / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def last_tick(sample) -> Tick | None:
+    """The last tick of a sample of the clock's log (``clock/log``), ``None`` if it has none:
+    how a test watching a run knows how far it has gone."""
+    ticks = codec.decode(sample.payload.to_bytes(), TickLog).body.ticks
+    return ticks[-1] if ticks else None
 
 
 def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) -> None:

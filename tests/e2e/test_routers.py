@@ -140,7 +140,7 @@ def test_a_standalone_router_says_and_logs_what_it_refuses(tmp_path):
             open_client(info["endpoint"])
         security = out / SECURITY_DIR
         intruder = open_client(info["endpoint"], settings=credentials_of(security, "reactor"))
-        tick = keys.full(info["run_id"], keys.tick())
+        tick = keys.full(info["run_id"], keys.tick_to("reactor"))
         for _ in range(3):
             intruder.put(tick, b"forged")
         refused = out / "refused.log"

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import zenoh
 
-from bus_schemas import Tick, codec, keys
+from bus_schemas import keys
 from core.record import summarize
 from kernel.bus import open_client
 from runtime.direct import simulate
@@ -32,6 +32,7 @@ from tests.conftest import (
     PAPER_OS_LEVEL,
     PAPER_OS_TEMPERATURE,
     SCENARIOS,
+    last_tick,
     wait_until,
     write_variant,
 )
@@ -93,10 +94,11 @@ def wait_for_virtual_time(session, info: dict, proc: subprocess.Popen, ticks: in
     reached = threading.Event()
 
     def on_tick(sample) -> None:
-        if codec.decode(sample.payload.to_bytes(), Tick).body.t >= ticks:
+        tick = last_tick(sample)
+        if tick is not None and tick.t >= ticks:
             reached.set()
 
-    sub = session.declare_subscriber(keys.full(info["run_id"], keys.tick()), on_tick)
+    sub = session.declare_subscriber(keys.full(info["run_id"], keys.tick_log()), on_tick)
     deadline = time.monotonic() + 120
     while not reached.wait(0.5):
         assert proc.poll() is None, proc.communicate()
@@ -209,9 +211,10 @@ def test_invalid_messages_are_dropped_counted_and_harmless(tmp_path, benchmark_r
 
 def test_forged_control_messages_and_requests_change_nothing(tmp_path, benchmark_run):
     """From an outside client on the run's router (issue 19, item 2): a set-point request from
-    another source than ``wncs inject``, one stamped with another run id, a Done, a tick and a
-    stop of another run on this run's keys. The clock and the nodes drop them all: the run ends
-    normally with the clean run's traces (the set point of 10 is never applied)."""
+    another source than ``wncs inject``, one stamped with another run id, a Done, a tick (to a
+    node, and in the clock's log) and a stop of another run on this run's keys. The clock and
+    the nodes drop them all: the run ends normally with the clean run's traces (the set point
+    of 10 is never applied)."""
     proc, info = start_run(BENCHMARK, tmp_path, "--realtime", "1.0", "--insecure")
     run_id = info["run_id"]
     session = open_client(info["endpoint"])
@@ -225,7 +228,14 @@ def test_forged_control_messages_and_requests_change_nothing(tmp_path, benchmark
         (keys.inject(), env("intruder", run_id, request)),
         (keys.inject(), env("inject", "r-other", request)),
         (keys.done("reactor"), env("reactor", "r-other", {"round": 1, "node": "reactor"})),
-        (keys.tick(), env("clock", "r-other", {"round": 99, "t": 10**9, "expected": {}})),
+        (
+            keys.tick_to("reactor"),
+            env("clock", "r-other", {"round": 99, "t": 10**9, "expected": {}}),
+        ),
+        (
+            keys.tick_log(),
+            env("clock", "r-other", {"ticks": [{"round": 99, "t": 0, "expected": {}}]}),
+        ),
         (
             keys.stop(),
             env("clock", "r-other", {"ok": False, "reason": "forged", "round": 1, "t": 0}),

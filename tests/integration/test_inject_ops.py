@@ -10,14 +10,14 @@ import threading
 
 import pytest
 
-from bus_schemas import Tick, codec, keys
+from bus_schemas import keys
 from core.errors import ConfigError
 from kernel.bus import open_client
 from kernel.security import SECURITY_DIR
 from runtime.inject import build_request, send
 from runtime.launcher import launch
 from runtime.security import DASHBOARD, INJECT, credentials_of
-from tests.conftest import SCENARIOS, wait_until, write_variant
+from tests.conftest import SCENARIOS, last_tick, wait_until, write_variant
 
 pytestmark = pytest.mark.slow
 
@@ -52,8 +52,8 @@ def test_mode_and_setpoint_injected_into_a_running_run(tmp_path):
     creds = credentials_of(security, INJECT)
     now = [0]
     sub = session.declare_subscriber(
-        keys.full(info["run_id"], keys.tick()),
-        lambda s: now.__setitem__(0, codec.decode(s.payload.to_bytes(), Tick).body.t),
+        keys.full(info["run_id"], keys.tick_log()),
+        lambda s: now.__setitem__(0, getattr(last_tick(s), "t", now[0])),
     )
     try:
         wait_until(lambda: now[0] >= 5_000_000, timeout=60, what="virtual time 5 pu")

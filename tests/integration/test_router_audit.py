@@ -34,7 +34,7 @@ def test_the_router_counts_every_refused_login_message_and_token(tmp_path):
                 open_client(endpoint, settings=settings)
         intruder = open_client(endpoint, settings=credentials_of(security, "reactor"))
         clock = open_client(endpoint, settings=credentials_of(security, "clock"))
-        tick = keys.full(RUN, keys.tick())
+        tick = keys.full(RUN, keys.tick_to("reactor"))
         heard: list[bytes] = []
         listener = open_client(endpoint, settings=credentials_of(security, "reactor"))
         sub = listener.declare_subscriber(tick, lambda s: heard.append(s.payload.to_bytes()))

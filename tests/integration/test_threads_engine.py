@@ -237,10 +237,11 @@ def test_a_run_cancelled_mid_round_ends_that_round_and_keeps_every_message_befor
 
 def test_a_lagging_historian_records_every_round_before_it_takes_the_stop(tmp_path, monkeypatch):
     """The historian observes the rounds (it answers only the sync rounds), so it may lag: held
-    at round 10 until the clock has published its Stop, it then finds every later tick and the
-    Stop queued, handles the ticks first and writes the same history as a run where it kept
-    up. (That the last tick cannot overtake the Stop, on one subscription, shows only under
-    load: ``test_wsn_run_is_reproducible...`` lost the last round one run in three without it.)"""
+    at round 10 until the clock has published its Stop, it then finds the clock's later logs
+    queued (the Stop in the last), handles their ticks first and writes the same history as a
+    run where it kept up. (That the last tick cannot overtake the Stop, both on one key, shows
+    only under load: ``test_wsn_run_is_reproducible...`` lost the last round one run in three
+    when they came on two subscriptions.)"""
     overrides = ["end_time=3.0"]  # fewer rounds than SYNC_ROUNDS: nothing waits for it
     full = launch(BENCHMARK, tmp_path / "full", engine="threads", overrides=overrides)
     assert full.code == 0, full.error

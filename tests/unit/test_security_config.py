@@ -22,7 +22,15 @@ from kernel.security import (
     router_settings,
 )
 from runtime.scenario import load_scenario
-from runtime.security import DASHBOARD, INJECT, grants, is_loopback, prepare, warn_insecure
+from runtime.security import (
+    DASHBOARD,
+    INJECT,
+    LAUNCHER,
+    grants,
+    is_loopback,
+    prepare,
+    warn_insecure,
+)
 from tests.conftest import BENCHMARK
 
 RUN = "rtest"
@@ -57,8 +65,13 @@ def test_each_node_may_put_only_the_keys_it_owns():
     )
     assert g["level_controller"].tokens == (_p("alive/level_controller"),)
     for name in ("reactor", "network", "historian", "operator"):
-        assert not any(k.startswith(_p("clock/tick")) for k in g[name].puts), name
-        assert _p(f"clock/tick/{name}") in g[name].subscribes
+        assert not any(k.startswith(_p("clock/")) for k in g[name].puts if "done" not in k)
+    for name in ("reactor", "network", "operator"):
+        assert {_p(f"clock/tick/{name}"), _p("clock/stop")} <= set(g[name].subscribes), name
+        assert _p("clock/log") not in g[name].subscribes
+    # the historian, an observer, takes the clock's log (every tick, the stop last) alone
+    assert [k for k in g["historian"].subscribes if "clock" in k] == [_p("clock/log")]
+    assert _p("clock/log") in g["clock"].puts and _p("clock/log") in g[LAUNCHER].subscribes
     assert g[INJECT] == Grant(puts=(_p("ops/inject"),), matches=(_p("ops/inject"),))
     assert g[DASHBOARD].puts == (_p("ops/inject"),)
     assert g["historian"].puts == (_p("clock/done/historian"),)
