@@ -3,15 +3,16 @@
 :func:`grants` derives each identity's :class:`~kernel.security.Grant` from the scenario: a node
 may publish only the keys it owns (:func:`runtime.ownership.publishers`) and its own
 ``clock/done/<node>``, subscribe only to what its role reads (:func:`runtime.ownership.readers`)
-and the clock's tick and stop, declare a liveliness token only under its own name and watch
-only the clock's. The clock publishes ``clock/*`` and the requests it stamps, and listens to
-``clock/done/*`` and
-``ops/inject``. ``wncs inject`` may put exactly ``ops/inject`` (and learn that the clock listens
-there); ``dashboard`` may put exactly ``ops/inject`` too, and read the run (it shows it);
-``launcher`` (``wncs run``'s own session, for its progress line) reads the ticks and the stop
-and watches who is alive. The historian reads everything and publishes nothing. Every
-publisher may learn of every subscription in the run (``matches``): a zenoh 1.10 client's
-declared publisher sends nothing to a router that has not told it of a matching subscriber.
+and its ticks (``clock/tick/<node>``) and the stop (the historian: the clock's log,
+``clock/log``, instead), declare a liveliness token only under its own name and watch only
+the clock's. The clock publishes the ticks, its log, the stop and the requests it stamps, and
+listens to ``clock/done/*`` and ``ops/inject``. ``wncs inject`` may put exactly ``ops/inject``
+(and learn that the clock listens there); ``dashboard`` may put exactly ``ops/inject`` too, and
+read the run (it shows it); ``launcher`` (``wncs run``'s own session, for its progress line)
+reads the clock's log and the stop and watches who is alive. The historian reads everything
+and publishes nothing. Every publisher may learn of every subscription in the run
+(``matches``): a zenoh 1.10 client's declared publisher sends nothing to a router that has not
+told it of a matching subscriber.
 :func:`prepare` writes the credentials and the access control under ``<run dir>/security``
 (:mod:`kernel.security`).
 """
