@@ -7,8 +7,9 @@ second, which is what the coordination agent pays per candidate sampling period.
 For the bus engines also the cost of one clock round (run phase over the rounds the history
 holds; with sparse rounds a node is ticked only when it has a timer due or a message to collect)
 and the floor it is compared with: one Zenoh round trip client -> router -> client -> router ->
-client on loopback (a ping answered by a second client), measured in the same run (median of
-300).
+client on loopback (a ping answered by a second client), measured right before each launch
+(median of 200 pings; this shared machine's round trip moves by 2x within an hour, so each
+launch is set against its own floor and the ratios' median printed).
 
 With ``--against REV`` it first times the direct engine here and at git revision ``REV``
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
@@ -124,10 +125,14 @@ def main() -> None:
 
     rows = {}
     rounds: dict[str, int] = {}
+    ratios: dict[str, list[float]] = {"threads": [], "processes": []}
+    floors: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         for engine in ("direct", "threads", "processes"):
             walls, runs, starts = [], [], []
             for i in range(args.repeat):
+                if engine != "direct":  # the floor of this very launch, just before it
+                    floors.append(round_trip_ms(200))
                 res = launch(SCENARIO, Path(tmp) / f"{engine}{i}", engine=engine)
                 if res.code != 0:
                     raise SystemExit(f"{engine}: {res.error}")
@@ -137,6 +142,8 @@ def main() -> None:
                 starts.append(s["phases_s"].get("startup", 0.0))
                 if engine != "direct":
                     rounds[engine] = rounds_of(Path(tmp) / f"{engine}{i}")
+                    per_round = runs[-1] / rounds[engine] * 1e3
+                    ratios[engine].append(per_round / floors[-1])
             rows[engine] = (
                 statistics.median(walls),
                 statistics.median(runs),
@@ -152,13 +159,20 @@ def main() -> None:
             f"| {run / base_run:.0f}x |"
         )
     print(f"\nmedians of {args.repeat} launches each (wncs run incl. summary and plots)")
-    floor = round_trip_ms()
-    print(f"\nZenoh round trip on loopback (client -> router -> client and back): {floor:.3f} ms")
-    print("| engine | rounds | run ms per round | per round / round trip |")
+    lo, hi, mid = min(floors), max(floors), statistics.median(floors)
+    print(
+        "\nZenoh round trip on loopback (client -> router -> client and back), measured before "
+        f"each launch: {lo:.3f}-{hi:.3f} ms, median {mid:.3f}"
+    )
+    print("| engine | rounds | run ms per round | per round / its launch's round trip (median) |")
     print("|---|---:|---:|---:|")
     for engine in ("threads", "processes"):
         per_round = rows[engine][1] / rounds[engine] * 1e3
-        print(f"| {engine} | {rounds[engine]} | {per_round:.3f} | {per_round / floor:.1f}x |")
+        each = ", ".join(f"{r:.1f}" for r in ratios[engine])
+        print(
+            f"| {engine} | {rounds[engine]} | {per_round:.3f} | "
+            f"{statistics.median(ratios[engine]):.1f}x ({each}) |"
+        )
 
 
 if __name__ == "__main__":

@@ -23,7 +23,9 @@ import yaml
 
 from bus_schemas import Sample, codec, keys
 from kernel.bus import open_client
+from kernel.security import SECURITY_DIR
 from runtime.launcher import launch
+from runtime.security import DASHBOARD, credentials_of
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_wsn.yaml"
 
@@ -54,7 +56,10 @@ def main() -> None:
         ):
             runner.join(0.02)
         info = json.loads((out / "run.json").read_text())
-        session = open_client(info["endpoint"])
+        # the run is secure: watch it as the dashboard does (it may read the whole run)
+        session = open_client(
+            info["endpoint"], settings=credentials_of(out / SECURITY_DIR, DASHBOARD)
+        )
         first_tick: list[float] = []
         arrivals: list[tuple[float, int]] = []
 
