@@ -167,10 +167,6 @@ class Behaviour:
         DESIGN section 3)."""
         return not self._timers or self._timers[0].t != t
 
-    def body_types(self, rel: str) -> tuple[type[BaseModel], ...]:
-        """The schemas of the subscriptions a message on ``rel`` reaches (raw ones left out)."""
-        return tuple(s.body_type for s in self._matches(rel) if s.body_type is not None)
-
     def listens_to(self, rel: str) -> bool:
         """Whether a message on concrete run-relative key ``rel`` reaches a handler."""
         return bool(self._matches(rel))

@@ -114,10 +114,9 @@ class BusNode:
         self._declared: list[Any] = []
         self._last_tick = -1  # every tick counts, the rounds this node sat out too
         self._owners: dict[str, frozenset[str]] = {}  # concrete key -> sources that own it
-        self._schemas: dict[str, tuple[type[BaseModel], ...]] = {}  # concrete key -> bodies
         self._n_pending = 0  # messages in self._pending
         # shared with the data callback (_on_data), under _lock: _pending, _counts, _n_pending,
-        # _seen, _owners, _schemas, _last_tick, _collected, _awaiting, _rejected
+        # _seen, _owners, _last_tick, _collected, _awaiting, _rejected
         self._lock = threading.Lock()
         self._counts: dict[int, Counter[str]] = {}  # round -> messages filed per key
         self._awaiting: tuple[int, dict[str, int]] | None = None  # (round, need) the loop waits on
@@ -396,8 +395,6 @@ class BusNode:
                 raise SchemaError(f"message of round {env.round} ahead of round {now}")
             if self._n_pending >= _PENDING_MAX:
                 raise SchemaError(f"{_PENDING_MAX} messages already wait for their rounds")
-            for body_type in self._schemas_of(rel):  # a body its handlers refuse must not
-                codec.decode_body(env, body_type)  # count towards a round's messages
         except SchemaError as err:
             n, reason = self._rejected.get(rel, (0, str(err)))
             self._rejected[rel] = (n + 1, reason)
@@ -435,18 +432,6 @@ class BusNode:
             if len(self._owners) < _OWNER_CACHE:  # forged keys must not fill our memory either
                 self._owners[rel] = owners
         return owners
-
-    def _schemas_of(self, rel: str) -> tuple[type[BaseModel], ...]:
-        """The body schemas of the behaviour's subscriptions to concrete key ``rel`` (lock
-        held). Checked when a message is filed: a forged body in a well-formed envelope from
-        the key's owner (an ``--insecure`` run) would otherwise count as one of the round's
-        messages and a round could start without the genuine one."""
-        schemas = self._schemas.get(rel)
-        if schemas is None:
-            schemas = self.behaviour.body_types(rel)
-            if len(self._schemas) < _OWNER_CACHE:
-                self._schemas[rel] = schemas
-        return schemas
 
     def _collect(self, tick: Tick) -> list[tuple[str, RawEnvelope]]:
         prev = tick.round - 1
