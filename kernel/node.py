@@ -189,9 +189,6 @@ class BusNode:
         try:
             return self._serve()
         finally:
-            self._over = True  # no round after this; one under way stops waiting (_wake)
-            if self._wake is not self._queue:
-                self._wake.put(("clock_gone", "", b""))
             # Leaving: the token first (the clock sees us go), subscribers and publishers with the
             # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
             # and makes zenoh log "Unknown token".
