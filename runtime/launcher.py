@@ -129,10 +129,11 @@ class _Progress:
             ticks = codec.decode(sample.payload.to_bytes(), TickLog).body.ticks
         except SchemaError:  # a progress display never fails a run
             return
-        if ticks and ticks[0].round == 0:  # logged at once (a sync round)
+        if not ticks:
+            return
+        if ticks[0].round == 0:  # logged at once (a sync round)
             self.first_tick_at = time.perf_counter()
-        if ticks:
-            self.t = to_units(ticks[-1].t)
+        self.t = to_units(ticks[-1].t)
 
     def on_stop(self, sample: Any) -> None:
         try:

@@ -14,7 +14,7 @@ from kernel.node import BusNode, NodeContext
 from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
 from runtime.inject import interpreter
-from runtime.ownership import publishers
+from runtime.ownership import OBSERVERS, publishers
 from runtime.scenario import Scenario
 
 __all__ = ["bus_node", "check_node", "clock_spec", "clock_runner"]
@@ -53,7 +53,7 @@ def clock_spec(scenario: Scenario) -> ClockSpec:
         max_microsteps=scenario.clock.max_microsteps,
         max_rounds=scenario.clock.max_rounds,
         may_drop=frozenset(scenario.clock.may_drop),
-        observers=frozenset({"historian"}),
+        observers=OBSERVERS,
     )
 
 

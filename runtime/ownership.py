@@ -30,9 +30,13 @@ from agents.monitor.config import MonitorNodeConfig
 from bus_schemas import keys
 from runtime.scenario import ControllerNodeConfig, OperatorNodeConfig, Scenario
 
-__all__ = ["CLOCK", "publishers", "readers", "owners_of"]
+__all__ = ["CLOCK", "OBSERVERS", "publishers", "readers", "owners_of"]
 
 CLOCK = "clock"
+
+OBSERVERS = frozenset({"historian"})
+"""The participants that observe the rounds (:attr:`kernel.clock.ClockSpec.observers`): they
+take the clock's log of ticks (``clock/log``) rather than ticks of their own."""
 """The clock's name on the bus (it stamps external requests as its own messages)."""
 
 

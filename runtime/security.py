@@ -37,7 +37,7 @@ from kernel.security import (
     write_security,
 )
 from kernel.tls import name_of_endpoint, router_names
-from runtime.ownership import CLOCK, publishers, readers
+from runtime.ownership import CLOCK, OBSERVERS, publishers, readers
 from runtime.scenario import Scenario
 
 __all__ = [
@@ -79,11 +79,11 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
     for name in scenario.participants():
         out[name] = Grant(
             puts=full(*owned[name], keys.done(name)),
-            # the ticks addressed to it (clock/tick/<node>) and the stop; the historian, an
-            # observer, the clock's log of every tick instead (clock/log, the stop last)
+            # the ticks addressed to it (clock/tick/<node>) and the stop; an observer (the
+            # historian) the clock's log of every tick instead (clock/log, the stop last)
             subscribes=full(
                 *reads[name],
-                *((keys.tick_log(),) if name == HISTORIAN else (keys.tick_to(name), keys.stop())),
+                *((keys.tick_log(),) if name in OBSERVERS else (keys.tick_to(name), keys.stop())),
             ),
             tokens=full(keys.alive(name)),
             watches=full(keys.alive(CLOCK)),
