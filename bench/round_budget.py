@@ -76,8 +76,20 @@ def median_us(fn: Callable[[], object], n: int = 2000) -> float:
 
 def unit_costs() -> dict[str, float]:
     """Microseconds per step, each alone in one thread."""
-    tick = Tick(round=12, t=1_200_000, expected={"loop/level/meas": 1, "plant/reactor/state": 1})
-    done = Done(round=12, node="level_controller", published={"loop/level/u": 1}, next_time=None)
+    announced = {"loop/level/meas": (2**63 + 1,), "plant/reactor/state": (2**62 + 3,)}
+    tick = Tick(
+        round=12,
+        t=1_200_000,
+        expected={"loop/level/meas": 1, "plant/reactor/state": 1},
+        digests=announced,
+    )
+    done = Done(
+        round=12,
+        node="level_controller",
+        published={"loop/level/u": 1},
+        digests={"loop/level/u": (2**63 + 5,)},
+        next_time=None,
+    )
     raw = codec.encode(run="r0123456789", src="clock", seq=7, round=12, t=1_200_000, body=tick)
     out: dict[str, float] = {}
     out["encode"] = median_us(

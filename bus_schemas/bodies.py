@@ -436,6 +436,20 @@ class NetworkEvent(BaseModel):
     source: Literal["injected"] = "injected"
 
 
+Digest = Annotated[int, Field(ge=0, lt=1 << 64, strict=True)]
+"""A message's fingerprint (:func:`bus_schemas.codec.digest`)."""
+
+
+def _check_digests(
+    digests: dict[str, tuple[Digest, ...]], counts: dict[str, int], name: str
+) -> None:
+    """Digests must announce exactly the messages ``counts`` counts (keys with none left out)."""
+    wanted = {k: n for k, n in counts.items() if n > 0}
+    got = {k: len(v) for k, v in digests.items()}
+    if got != wanted:
+        raise ValueError(f"digests announce {got} messages per key, {name} {wanted}")
+
+
 class Tick(BaseModel):
     """Start of clock round ``round`` at time ``t`` (DESIGN section 3, step 1)."""
 
@@ -451,6 +465,17 @@ class Tick(BaseModel):
         description="the nodes that take part in this round (sparse rounds: a timer due at t, "
         "or a message of the previous round to collect); None: every participant",
     )
+    digests: dict[str, tuple[Digest, ...]] = Field(
+        default_factory=dict,
+        description="run-relative key -> the digests (codec.digest) of the messages of "
+        "expected, as their publishers announced them; a subscriber takes exactly these",
+    )
+
+    @model_validator(mode="after")
+    def _digests_match_counts(self) -> Tick:
+        if self.digests:
+            _check_digests(self.digests, self.expected, "expected")
+        return self
 
 
 class Done(BaseModel):
@@ -472,6 +497,16 @@ class Done(BaseModel):
         description="round 0: the key expressions the node subscribes to (run-relative), for "
         "the clock to know who takes part in a round",
     )
+    digests: dict[str, tuple[Digest, ...]] = Field(
+        default_factory=dict,
+        description="run-relative key -> the digests (codec.digest) of the messages counted "
+        "in published, for the clock to announce in the next Tick",
+    )
+
+    @model_validator(mode="after")
+    def _digests_match_counts(self) -> Done:
+        _check_digests(self.digests, self.published, "published")
+        return self
 
 
 class Stop(BaseModel):

@@ -7,6 +7,7 @@ Every failure is a :class:`~bus_schemas.errors.SchemaError` saying what was wron
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any, TypeVar
 
 import msgpack
@@ -25,6 +26,7 @@ __all__ = [
     "decode_body",
     "validate_body",
     "decode",
+    "digest",
 ]
 
 ENCODING = "application/msgpack"
@@ -70,6 +72,16 @@ def encode(*, run: str, src: str, seq: int, round: int, t: int, body: BaseModel)
             "body": body.model_dump(mode="python"),
         }
     )
+
+
+def digest(payload: bytes) -> int:
+    """A message's fingerprint: the first 8 bytes of the BLAKE2b hash of its bytes, as an int.
+
+    A publisher announces the digests of a round's messages in its ``Done``, the clock passes
+    them on in the next ``Tick``, and a subscriber takes exactly the messages announced
+    (:mod:`kernel.node`): a forged message, even in a well-formed envelope from the key's
+    owner, cannot stand in for a genuine one unless it is the same bytes. 0.5 us a message."""
+    return int.from_bytes(hashlib.blake2b(payload, digest_size=8).digest(), "big")
 
 
 def _first_error(err: ValidationError) -> str:

@@ -141,6 +141,7 @@ class ClockRunner:
         self._cancelled: str | None = None  # the reason given to cancel(), if any
         self._log: list[Tick] = []  # ticks not yet logged on clock/log
         self._log_since = 0.0  # monotonic time the oldest of them was logged
+        self._announced: dict[str, list[int]] = {}  # key -> digests of the last round's messages
 
     @property
     def members(self) -> frozenset[str]:
@@ -244,17 +245,16 @@ class ClockRunner:
         log.info("clock: injected %s on %s, in the next round", body, rel)
         self._injections.append((rel, body))
 
-    def _stamp_injections(self, tick: Tick) -> Tick:
+    def _stamp_injections(self, round_: int, t: int) -> None:
         """Publish pending external inputs as the clock's messages of the previous round and
-        announce them in this round's expected counts (DESIGN section 3, external inputs)."""
-        if not self._injections or tick.round == 0:
-            return tick
-        expected = dict(tick.expected)
+        announce them with that round's other messages (DESIGN section 3, external inputs)."""
+        if not self._injections or round_ == 0:
+            return
         for rel, body in self._injections:
-            self._publish(rel, body, round=tick.round - 1, t=tick.t)
-            expected[rel] = expected.get(rel, 0) + 1
+            payload = self._envelope(body, round_ - 1, t)
+            self._put([rel], payload)
+            self._announced.setdefault(rel, []).append(codec.digest(payload))
         self._injections.clear()
-        return Tick(round=tick.round, t=tick.t, expected=dict(sorted(expected.items())))
 
     def _handle_alive(self, name: str, kind: zenoh.SampleKind) -> None:
         if kind == zenoh.SampleKind.PUT:
@@ -348,20 +348,24 @@ class ClockRunner:
         timeout = self.spec.round_timeout_s
         planner = self.planner
         while True:
-            tick = self._stamp_injections(planner.tick())
-            sync = tick.round % SYNC_ROUNDS == 0
-            if tick.round == 0:
-                who = self.members
+            self._stamp_injections(planner.round, planner.t)
+            digests = {k: tuple(sorted(v)) for k, v in sorted(self._announced.items())}
+            expected = {k: len(v) for k, v in digests.items()}
+            sync = planner.round % SYNC_ROUNDS == 0
+            if planner.round == 0:
+                who, named = self.members, None
             else:
-                who = self.participation.of(tick.t, tick.expected) & self.participants
+                who = self.participation.of(planner.t, expected) & self.participants
                 if sync:
                     who |= self.observers
-                tick = Tick(
-                    round=tick.round,
-                    t=tick.t,
-                    expected=tick.expected,
-                    participants=tuple(sorted(who)),
-                )
+                named = tuple(sorted(who))
+            tick = Tick(
+                round=planner.round,
+                t=planner.t,
+                expected=expected,
+                digests=digests,
+                participants=named,
+            )
             self._publish_tick(tick, self.participants if sync else who)
             dones: dict[str, Done] = {}
             deadline = time.monotonic() + timeout
@@ -406,6 +410,7 @@ class ClockRunner:
                 raise NodeFault(cancelled)
             t_before = planner.t
             published: dict[str, int] = {}
+            self._announced = {}
             for node, done in sorted(dones.items()):
                 if node not in self.members:
                     continue  # dropped during the round
@@ -414,6 +419,8 @@ class ClockRunner:
                     self.participation.learn(node, done.next_time, done.listens)
                 for key, n in done.published.items():
                     published[key] = published.get(key, 0) + n
+                for key, ds in done.digests.items():
+                    self._announced.setdefault(key, []).extend(ds)
             planner.advance_with(
                 published, {n: self.participation.next_times.get(n) for n in self.participants}
             )

@@ -3,13 +3,17 @@
 What a node does lives in its :class:`~core.behaviour.Behaviour` (bus-free, shared with the
 direct engine); this class only moves its messages. Each round it:
 
-1. waits for ``Tick(r, t, expected)`` and collects, for every expected key matching one of the
-   behaviour's subscriptions, that many messages stamped ``r - 1`` (zenoh gives no order across
-   publishers; the counts make delivery complete);
+1. waits for ``Tick(r, t, expected, digests)`` and collects, for every expected key matching
+   one of the behaviour's subscriptions, the messages stamped ``r - 1`` whose digests
+   (:func:`bus_schemas.codec.digest`) the tick announces: zenoh gives no order across
+   publishers, and the digests make delivery complete. Only the announced messages count: a
+   forged one, even in a well-formed envelope from the key's owner (an ``--insecure`` run),
+   cannot let a round start without the genuine one; it is dropped and counted;
 2. runs the behaviour's round (:meth:`~core.behaviour.Behaviour.run_round`) with them in
    ``(key, src, seq)`` order, never arrival order; a message that fails to decode or validate is
    dropped, counted per key and logged once per key;
-3. publishes the behaviour's outputs stamped ``r`` and answers ``Done(r, published, next_time)``
+3. publishes the behaviour's outputs stamped ``r`` and answers ``Done(r, published, digests,
+   next_time)``
    (an observer, :attr:`BusNode.observer`, only in the rounds it is ticked for).
 
 The behaviour is touched only by the loop thread. Zenoh's callbacks put the clock's messages
@@ -101,8 +105,7 @@ class BusNode:
         self.log = behaviour.log
         self._seq = 0
         self._queue: queue.Queue[tuple[str, str, bytes]] = queue.Queue()
-        self._pending: dict[int, list[tuple[str, RawEnvelope]]] = {}
-        self._seen: set[tuple[str, int]] = set()
+        self._pending: dict[int, list[tuple[str, RawEnvelope, int]]] = {}  # (key, env, digest)
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._timeout = ctx.round_timeout_s
         self._backlog: list[tuple[str, str, bytes]] = []
@@ -110,11 +113,12 @@ class BusNode:
         self._last_tick = -1  # every tick counts, the rounds this node sat out too
         self._owners: dict[str, frozenset[str]] = {}  # concrete key -> sources that own it
         self._n_pending = 0  # messages in self._pending
-        # shared with the data callback (_on_data), under _lock: _pending, _counts, _n_pending,
-        # _seen, _owners, _last_tick, _collected, _awaiting, _rejected
+        # shared with the data callback (_on_data), under _lock: _pending, _filed, _n_pending,
+        # _owners, _last_tick, _collected, _awaiting, _rejected
         self._lock = threading.Lock()
-        self._counts: dict[int, Counter[str]] = {}  # round -> messages filed per key
-        self._awaiting: tuple[int, dict[str, int]] | None = None  # (round, need) the loop waits on
+        self._filed: dict[int, dict[str, set[int]]] = {}  # round -> key -> digests filed
+        # (round, key -> digests) the loop waits on
+        self._awaiting: tuple[int, Mapping[str, tuple[int, ...]]] | None = None
         self._rejected: dict[str, tuple[int, str]] = {}  # key -> (count, first reason) to report
 
     observer = False
@@ -266,8 +270,9 @@ class BusNode:
             self.behaviour.dispatch(rel, env, _raw(env))
         outputs, next_time = self.behaviour.end_round()
         counts: Counter[str] = Counter()
+        digests: dict[str, list[int]] = {}
         for rel, body in outputs:
-            self._put(rel, body)
+            digests.setdefault(rel, []).append(self._put(rel, body))
             counts[rel] += 1
         self._flush_rejections()
         if not answers:
@@ -278,6 +283,7 @@ class BusNode:
                 round=tick.round,
                 node=self.name,
                 published=dict(counts),
+                digests={k: tuple(v) for k, v in digests.items()},
                 next_time=next_time,
                 dropped_invalid=dict(self.dropped_invalid),
                 listens=tuple(self.behaviour.patterns) if tick.round == 0 else None,
@@ -323,7 +329,8 @@ class BusNode:
                 raise SchemaError(f"envelope of run {env.run!r} on this run's key")
             if env.src not in self._owners_of(rel):
                 raise SchemaError(f"{env.src!r} does not publish on this key")
-            if (env.src, env.seq) in self._seen:
+            digest = codec.digest(payload)
+            if digest in self._filed.get(env.round, {}).get(rel, ()):
                 raise SchemaError(f"duplicate message {env.src}#{env.seq}")
             now = self._last_tick
             if env.round < now - 1 or (env.round == now - 1 and self._collected):
@@ -336,15 +343,21 @@ class BusNode:
             n, reason = self._rejected.get(rel, (0, str(err)))
             self._rejected[rel] = (n + 1, reason)
             return
-        self._seen.add((env.src, env.seq))
-        self._pending.setdefault(env.round, []).append((rel, env))
-        self._counts.setdefault(env.round, Counter())[rel] += 1
+        self._pending.setdefault(env.round, []).append((rel, env, digest))
+        self._filed.setdefault(env.round, {}).setdefault(rel, set()).add(digest)
         self._n_pending += 1
 
-    def _missing(self, prev: int, need: Mapping[str, int]) -> dict[str, int]:
-        """How many messages of round ``prev`` each key of ``need`` still lacks (lock held)."""
-        have = self._counts.get(prev) or Counter()
-        return {k: n - have[k] for k, n in need.items() if have[k] < n}
+    def _missing(self, prev: int, need: Mapping[str, tuple[int, ...]]) -> dict[str, int]:
+        """How many of the messages of round ``prev`` announced on each key of ``need`` (by
+        their digests) are not filed yet (lock held)."""
+        have = self._filed.get(prev) or {}
+        missing = {}
+        for key, digests in need.items():
+            filed = have.get(key, ())
+            n = sum(1 for d in digests if d not in filed)
+            if n:
+                missing[key] = n
+        return missing
 
     def _flush_rejections(self) -> None:
         """Count what the data callback refused (the behaviour's counters, its log)."""
@@ -372,7 +385,9 @@ class BusNode:
 
     def _collect(self, tick: Tick) -> list[tuple[str, RawEnvelope]]:
         prev = tick.round - 1
-        need = {k: n for k, n in tick.expected.items() if n > 0 and self.behaviour.listens_to(k)}
+        if any(tick.expected.values()) and not tick.digests:
+            raise ProtocolError(f"{self.name}: tick {tick.round} announces no digests")
+        need = {k: ds for k, ds in tick.digests.items() if self.behaviour.listens_to(k)}
         deadline = time.monotonic() + self._timeout
         try:
             while True:
@@ -406,25 +421,29 @@ class BusNode:
                 self._awaiting = None
         with self._lock:
             inbox = self._pending.pop(prev, [])
-            self._counts.pop(prev, None)
+            self._filed.pop(prev, None)
             self._n_pending -= len(inbox)
             stale = [(r, self._pending.pop(r)) for r in [r for r in self._pending if r < prev]]
             for r, old in stale:
-                self._counts.pop(r, None)
+                self._filed.pop(r, None)
                 self._n_pending -= len(old)
             self._collected = True
         for r, old in stale:
-            for rel, _ in old:
+            for rel, _, _ in old:
                 self._reject(rel, f"stale message of round {r}")
-        unexpected = [(rel, env) for rel, env in inbox if rel not in need]
-        for rel, env in unexpected:
-            self._reject(rel, f"{env.src}#{env.seq} was not announced to the clock")
-        return [(rel, env) for rel, env in inbox if rel in need]
+        taken = []
+        for rel, env, digest in inbox:
+            if digest in need.get(rel, ()):
+                taken.append((rel, env))
+            else:  # forged, altered, or published without telling the clock
+                self._reject(rel, f"{env.src}#{env.seq} is not a message announced to the clock")
+        return taken
 
     def _reject(self, rel: str, reason: str) -> None:
         self.behaviour.reject(rel, reason)
 
-    def _put(self, rel: str, body: BaseModel) -> None:
+    def _put(self, rel: str, body: BaseModel) -> int:
+        """Publish ``body`` on ``rel`` as this node's next message; return its digest."""
         pub = self._publishers.get(rel)
         if pub is None:
             pub = self.ctx.session.declare_publisher(
@@ -445,3 +464,4 @@ class BusNode:
         )
         self._seq += 1
         pub.put(payload)
+        return codec.digest(payload)

@@ -18,6 +18,7 @@ from typing import Any
 
 from bus_schemas import Stop, Tick, codec, keys
 from core.behaviour import Behaviour, Incoming
+from core.rounds import merge_dropped
 from kernel.node import BusNode, NodeContext
 from runtime import history
 from runtime.artefacts import HISTORY_FILE
@@ -78,6 +79,8 @@ class HistorianNode(BusNode):
         self.db.commit()
 
     def on_stop(self, stop: Stop) -> None:
-        self._set_meta("stop", stop.model_dump())
+        # what it refused since its last Done (it answers only the sync rounds) counts too
+        dropped = merge_dropped([stop.dropped_invalid, self.dropped_invalid])
+        self._set_meta("stop", {**stop.model_dump(), "dropped_invalid": dropped})
         self.db.commit()
         self.db.close()

@@ -16,7 +16,9 @@ from tests.conftest import SCENARIOS
 
 
 def done(node, rnd, published=None, next_time=None):
-    return Done(round=rnd, node=node, published=published or {}, next_time=next_time)
+    published = published or {}
+    digests = {k: tuple(range(n)) for k, n in published.items()}  # the planner counts them
+    return Done(round=rnd, node=node, published=published, digests=digests, next_time=next_time)
 
 
 def test_microstep_then_next_event_then_end():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import msgpack
@@ -35,8 +36,16 @@ BODIES = [
     Estimate(values=(1.5, -0.02), t_sent=38_806),
     Setpoint(value=56.0),
     PlantState(t=(0, 10_000), values={"H": (0.7, 0.71), "T": (52.0, 52.1)}),
-    Tick(round=3, t=100, expected={"loop/level/meas": 1}),
-    Done(round=3, node="reactor", published={"plant/reactor/state": 1}, next_time=None),
+    Tick(
+        round=3, t=100, expected={"loop/level/meas": 1}, digests={"loop/level/meas": (2**64 - 1,)}
+    ),
+    Done(
+        round=3,
+        node="reactor",
+        published={"plant/reactor/state": 1},
+        digests={"plant/reactor/state": (7,)},
+        next_time=None,
+    ),
     Stop(ok=False, reason="node 'x' left", round=9, t=10, dropped_invalid={"a/b": 2}),
 ]
 
@@ -92,6 +101,35 @@ def test_plant_state_columns_must_match_times():
     env["body"]["values"]["H"] = [1.0, 2.0]
     with pytest.raises(SchemaError, match="values.H: 2 values for 1 times"):
         codec.decode(msgpack.packb(env), PlantState)
+
+
+def test_a_digest_is_the_first_8_bytes_of_blake2b_of_the_message():
+    raw = codec.encode(run="r", src="p", seq=0, round=0, t=0, body=Setpoint(value=1.0))
+    assert codec.digest(raw) == int(hashlib.blake2b(raw, digest_size=8).hexdigest(), 16)
+    assert codec.digest(raw[:-1] + bytes([raw[-1] ^ 1])) != codec.digest(raw)
+
+
+@pytest.mark.parametrize(
+    ("body", "fragment"),
+    [
+        ({"published": {"a/b": 2}, "digests": {"a/b": [1]}}, "digests announce"),
+        ({"published": {"a/b": 1}, "digests": {}}, "digests announce"),
+        ({"published": {}, "digests": {"a/b": [1]}}, "digests announce"),
+        ({"published": {"a/b": 1}, "digests": {"a/b": [-1]}}, "digests.a/b.0"),
+        ({"published": {"a/b": 1}, "digests": {"a/b": [2**64]}}, "digests.a/b.0"),
+        ({"published": {"a/b": 1}, "digests": {"a/b": ["1"]}}, "digests.a/b.0"),
+    ],
+)
+def test_a_done_must_announce_a_digest_for_each_message_it_counts(body, fragment):
+    with pytest.raises(SchemaError, match=fragment):
+        codec.validate_body({"round": 1, "node": "n", **body}, Done)
+
+
+def test_a_tick_with_digests_must_announce_them_for_its_counts():
+    with pytest.raises(SchemaError, match="digests announce"):
+        codec.validate_body(
+            {"round": 1, "t": 0, "expected": {"a/b": 2}, "digests": {"a/b": [1]}}, Tick
+        )
 
 
 def test_schema_error_is_a_value_error():
