@@ -409,7 +409,6 @@ class ClockRunner:
             if cancelled is not None:
                 raise NodeFault(cancelled)
             t_before = planner.t
-            published: dict[str, int] = {}
             self._announced = {}
             for node, done in sorted(dones.items()):
                 if node not in self.members:
@@ -417,12 +416,11 @@ class ClockRunner:
                 self.ticked[node] = self.ticked.get(node, 0) + 1
                 if node in self.participants:  # an observer's answer says nothing of its rounds
                     self.participation.learn(node, done.next_time, done.listens)
-                for key, n in done.published.items():
-                    published[key] = published.get(key, 0) + n
-                for key, ds in done.digests.items():
+                for key, ds in done.digests.items():  # as many as it counts (Done checks)
                     self._announced.setdefault(key, []).extend(ds)
             planner.advance_with(
-                published, {n: self.participation.next_times.get(n) for n in self.participants}
+                {k: len(v) for k, v in self._announced.items()},
+                {n: self.participation.next_times.get(n) for n in self.participants},
             )
             if planner.finished:
                 return

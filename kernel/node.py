@@ -269,11 +269,9 @@ class BusNode:
         for rel, env in ordered:
             self.behaviour.dispatch(rel, env, _raw(env))
         outputs, next_time = self.behaviour.end_round()
-        counts: Counter[str] = Counter()
         digests: dict[str, list[int]] = {}
         for rel, body in outputs:
             digests.setdefault(rel, []).append(self._put(rel, body))
-            counts[rel] += 1
         self._flush_rejections()
         if not answers:
             return  # an observer between sync rounds
@@ -282,7 +280,7 @@ class BusNode:
             Done(
                 round=tick.round,
                 node=self.name,
-                published=dict(counts),
+                published={k: len(v) for k, v in digests.items()},
                 digests={k: tuple(v) for k, v in digests.items()},
                 next_time=next_time,
                 dropped_invalid=dict(self.dropped_invalid),

@@ -33,11 +33,11 @@ from runtime.scenario import ControllerNodeConfig, OperatorNodeConfig, Scenario
 __all__ = ["CLOCK", "OBSERVERS", "publishers", "readers", "owners_of"]
 
 CLOCK = "clock"
+"""The clock's name on the bus (it stamps external requests as its own messages)."""
 
 OBSERVERS = frozenset({"historian"})
 """The participants that observe the rounds (:attr:`kernel.clock.ClockSpec.observers`): they
 take the clock's log of ticks (``clock/log``) rather than ticks of their own."""
-"""The clock's name on the bus (it stamps external requests as its own messages)."""
 
 
 def publishers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
