@@ -1,10 +1,11 @@
 """A forged message that reaches its subscribers *before* the genuine one changes nothing
 (issue 20; with counts alone it stood in for the genuine one): a node takes exactly the
 messages whose digests the tick announces (``kernel.node``), so a well-formed envelope from
-the key's owner, stamped with the right round and carrying a valid but different body, neither counts as the
-genuine message nor is handed to a behaviour. Here the network node itself puts the forgery on
-the key just before each of its genuine messages, through its own session: zenoh keeps one
-session's order on a key, so every subscriber files the forgery first, every time."""
+the key's owner, stamped with the right round and carrying a valid but different body,
+neither counts as the genuine message nor is handed to a behaviour. Here the network node
+itself puts the forgery on the key just before each of its genuine messages, through its own
+session: zenoh keeps one session's order on a key, so every subscriber files the forgery
+first, every time."""
 
 from __future__ import annotations
 
