@@ -18,13 +18,14 @@ a round alone, in one thread, and multiplies by how often a run does it:
   the clock publish, and ``express`` as they did before: an immediate write per message, 60
   times dearer for no shorter round), a queue hop between two
   threads (one wake-up: zenoh-python runs each subscriber's callback in a thread of its own,
-  so a sample costs one hop to reach its callback, and the clock's messages one more to reach
-  the node's loop; a data message is filed by its callback, no second hop), an SQLite insert
+  so a sample costs one hop to reach its callback; a node's round runs in its tick's callback
+  and the clock's next tick goes out from the Done's callback, and a data message is filed by
+  its callback: no second hop, but for the clock's log to an observer's loop), an SQLite insert
   and a commit (the historian's), and a Zenoh round trip (``bench/engines.py``);
-* the round's skeleton: the clock's thread puts a tick, a node's thread (woken by its
-  subscriber's callback through a queue, as in :mod:`kernel.node`) puts a ``Done``, the clock's
-  thread (woken likewise) takes it, over a router in a process of its own, as in a run, with
-  no work at all: the floor of the protocol as built.
+* the round's skeleton: a tick's callback at the node puts a ``Done`` and the ``Done``'s callback
+  at the clock puts the next tick (as :mod:`kernel.node` and :mod:`kernel.clock` do), over a
+  router in a process of its own, as in a run, with no work at all: the floor of the protocol
+  as built.
 
 Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
 of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover
@@ -157,38 +158,36 @@ def skeleton_ms(n: int = 400) -> float:
     router = RouterProcess("tcp/127.0.0.1:0")
     endpoint = next(loc for loc in router.locators if loc.startswith("tcp/"))
     clock, node = open_client(endpoint), open_client(endpoint)
-    dones: queue.Queue[int] = queue.Queue()
-    ticks: queue.Queue[bytes] = queue.Queue()
-    subs = [
-        clock.declare_subscriber("bench/done", lambda s: dones.put(1)),
-        node.declare_subscriber("bench/tick", lambda s: ticks.put(s.payload.to_bytes())),
-    ]
     done_pub = node.declare_publisher("bench/done")
     tick_pub = clock.declare_publisher("bench/tick")
+    times: list[float] = []
+    over = threading.Event()
 
-    def serve() -> None:
-        while (item := ticks.get()) != b"":
-            done_pub.put(item)
-
-    th = threading.Thread(target=serve, daemon=True)
-    th.start()
-    time.sleep(0.5)  # let the subscriptions reach the router
-    times = []
-    try:
-        for _ in range(n + 50):
-            t0 = time.perf_counter()
+    def on_done(_: object) -> None:  # the clock's Done callback: the round ends, the next starts
+        times.append(time.perf_counter())
+        if len(times) > n + 50:
+            over.set()
+        else:
             tick_pub.put(b"x" * 40)
-            dones.get(timeout=5)
-            times.append(time.perf_counter() - t0)
+
+    subs = [
+        clock.declare_subscriber("bench/done", on_done),
+        node.declare_subscriber("bench/tick", lambda s: done_pub.put(s.payload.to_bytes())),
+    ]
+    time.sleep(0.5)  # let the subscriptions reach the router
+    try:
+        times.append(time.perf_counter())
+        tick_pub.put(b"x" * 40)
+        if not over.wait(timeout=60):
+            raise SystemExit("the skeleton's rounds did not complete within 60 s")
     finally:
-        ticks.put(b"")
-        th.join()
         for sub in subs:
             sub.undeclare()
         clock.close()
         node.close()
         router.close()
-    return statistics.median(times[50:]) * 1e3
+    rounds = [b - a for a, b in itertools.pairwise(times)]
+    return statistics.median(rounds[50:]) * 1e3
 
 
 def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
@@ -228,10 +227,10 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
     deliveries = sum(listeners[k] for k in msg_keys)
     per_round = {
         "messages published (encode + put)": len(msg_keys) / rounds,
-        "Done answers (encode + put; clock: 2 hops + decode)": taken / rounds,
+        "Done answers (encode + put; clock: callback hop + decode)": taken / rounds,
         "message deliveries (callback hop + decode, filed there)": deliveries / rounds,
         "ticks put (one per addressee, and the clock's logs)": addressed + logs[0] / rounds,
-        "tick deliveries to their nodes (2 hops + decode)": addressed,
+        "tick deliveries to their nodes (callback hop + decode)": addressed,
         "the clock's log to the historian and the progress line (2 hops + decode each)": 2
         * logs[0]
         / rounds,
@@ -254,14 +253,15 @@ def main() -> None:
         print(f"  {what:14s} {us:7.1f}")
     cost = {
         "messages published (encode + put)": unit["encode"] + unit["zenoh put"],
-        "Done answers (encode + put; clock: 2 hops + decode)": unit["encode"]
+        "Done answers (encode + put; clock: callback hop + decode)": unit["encode"]
         + unit["zenoh put"]
-        + 2 * unit["queue hop"]
+        + unit["queue hop"]
         + unit["decode"],
         "message deliveries (callback hop + decode, filed there)": unit["queue hop"]
         + unit["decode"],
         "ticks put (one per addressee, and the clock's logs)": unit["zenoh put"],
-        "tick deliveries to their nodes (2 hops + decode)": 2 * unit["queue hop"] + unit["decode"],
+        "tick deliveries to their nodes (callback hop + decode)": unit["queue hop"]
+        + unit["decode"],
         "the clock's log to the historian and the progress line (2 hops + decode each)": 2
         * unit["queue hop"]
         + unit["decode"],
@@ -286,7 +286,7 @@ def main() -> None:
         "Dones back over the router) and threads waiting for the interpreter lock"
     )
     print(
-        f"the round's skeleton (tick to a node's thread, Done back to the clock's thread, no "
+        f"the round's skeleton (tick to a node's callback, Done back to the clock's callback, no "
         f"work): {bare * 1e3:.0f} us, {bare / floor:.1f}x the round trip; the run's rounds "
         f"cost {wall_ms / bare:.1f}x their skeleton"
     )

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -142,6 +143,20 @@ class ClockRunner:
         self._log: list[Tick] = []  # ticks not yet logged on clock/log
         self._log_since = 0.0  # monotonic time the oldest of them was logged
         self._announced: dict[str, list[int]] = {}  # key -> digests of the last round's messages
+        # The round under way, shared by this thread and the Done callback (_on_done), under
+        # _lock: its tick, the nodes that answer it, their answers so far, when it started,
+        # whether it still waits for answers (_collecting), whether rounds may still start
+        # (_running), a cancel waiting for the round's end, and what failed in a callback.
+        self._lock = threading.Lock()
+        self._tick = Tick(round=0, t=0, expected={})
+        self._who: frozenset[str] = frozenset()
+        self._dones: dict[str, Done] = {}
+        self._round_started = 0.0
+        self._collecting = False
+        self._running = False
+        self._cancelling: str | None = None
+        self._cancel_deadline = 0.0
+        self._failure: BaseException | None = None
 
     @property
     def members(self) -> frozenset[str]:
@@ -221,9 +236,6 @@ class ClockRunner:
     def _on_alive(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
         self._queue.put(("alive", name, sample.kind))
-
-    def _on_done(self, sample: zenoh.Sample) -> None:
-        self._queue.put(("done", str(sample.key_expr), sample.payload.to_bytes()))
 
     def _on_inject(self, sample: zenoh.Sample) -> None:
         self._queue.put(("inject", str(sample.key_expr), sample.payload.to_bytes()))
@@ -344,73 +356,142 @@ class ClockRunner:
         """Run the rounds. Round 0 ticks every participant (their ``Done`` says what they
         subscribe to); later rounds only those with a timer due or a message to collect
         (:class:`~core.rounds.Participation`); liveliness still watches everyone. The
-        observers (:attr:`ClockSpec.observers`) take every tick but answer only sync rounds."""
+        observers (:attr:`ClockSpec.observers`) take every tick but answer only sync rounds.
+
+        The rounds advance in the ``Done`` subscriber's callback thread (:meth:`_on_done`): the
+        ``Done`` that completes a round publishes the next tick there, without a hop to this
+        thread (a wake-up, about 40 us: ``bench/round_budget.py``). This thread watches:
+        liveliness, requests, a cancel, a round's timeout, the real-time pacing, and the end."""
         timeout = self.spec.round_timeout_s
-        planner = self.planner
-        while True:
-            self._stamp_injections(planner.round, planner.t)
-            digests = {k: tuple(sorted(v)) for k, v in sorted(self._announced.items())}
-            expected = {k: len(v) for k, v in digests.items()}
-            sync = planner.round % SYNC_ROUNDS == 0
-            if planner.round == 0:
-                who, named = self.members, None
-            else:
-                who = self.participation.of(planner.t, expected) & self.participants
-                if sync:
-                    who |= self.observers
-                named = tuple(sorted(who))
-            tick = Tick(
-                round=planner.round,
-                t=planner.t,
-                expected=expected,
-                digests=digests,
-                participants=named,
-            )
-            self._publish_tick(tick, self.participants if sync else who)
-            dones: dict[str, Done] = {}
-            deadline = time.monotonic() + timeout
-            cancelled: str | None = None
-            while not (who & self.members) <= set(dones):
+        with self._lock:
+            self._running = True
+            self._start_round()
+            self._advance_if_complete()
+        try:
+            while True:
+                with self._lock:
+                    deadline = self._round_started + timeout
+                    if self._cancelling is not None:
+                        deadline = min(deadline, self._cancel_deadline)
                 item = self._next(deadline - time.monotonic())
                 if item is None:
-                    if cancelled is not None:
-                        raise NodeFault(cancelled)
-                    silent = sorted((who & self.members) - set(dones))
-                    raise NodeFault(
-                        f"node(s) {silent} did not answer round {tick.round} "
-                        f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
-                    )
+                    with self._lock:
+                        self._check_round_time(timeout)
+                    continue
                 kind, key, payload = item
                 if kind == "cancel":  # end the round first: the ticked nodes then handled all
-                    cancelled = key  # of the round before, within a grace for a hung node
-                    deadline = min(deadline, time.monotonic() + CANCEL_GRACE_S)
-                    continue
-                if kind == "alive":
-                    self._handle_alive(key, payload)  # type: ignore[arg-type]
-                    continue
-                if kind == "inject":
-                    self._take_injection(payload)  # type: ignore[arg-type]
-                    continue
-                try:
-                    env = codec.decode_envelope(payload)  # type: ignore[arg-type]
-                    if env.run != self.run_id:
-                        raise SchemaError(f"Done of run {env.run!r} on this run's key")
-                    done = codec.decode_body(env, Done)
-                except SchemaError as err:
-                    log.warning("clock: dropping invalid Done on %s: %s", key, err)
-                    continue
-                if done.node not in who or env.src != done.node:
-                    log.warning("clock: Done from %r, not ticked in this round, ignored", done.node)
-                    continue
-                if done.round != tick.round:
-                    continue
-                dones[done.node] = done
-                self.dropped_invalid[done.node] = done.dropped_invalid
-            if cancelled is not None:
-                raise NodeFault(cancelled)
+                    with self._lock:  # of the round before, within a grace for a hung node
+                        if not self._collecting:
+                            raise NodeFault(key)
+                        self._cancelling = key
+                        self._cancel_deadline = time.monotonic() + CANCEL_GRACE_S
+                elif kind == "alive":
+                    with self._lock:
+                        self._handle_alive(key, payload)  # type: ignore[arg-type]
+                        self._advance_if_complete()  # a node dropped may complete the round
+                elif kind == "inject":
+                    with self._lock:
+                        self._take_injection(payload)  # type: ignore[arg-type]
+                elif kind == "halted":
+                    assert self._cancelling is not None
+                    raise NodeFault(self._cancelling)
+                elif kind == "failed":
+                    assert self._failure is not None
+                    raise self._failure
+                elif kind == "finished":
+                    return
+                elif kind == "pace":
+                    self._pace(self.planner.t)
+                    with self._lock:
+                        self._start_round()
+                        self._advance_if_complete()
+        finally:
+            with self._lock:
+                self._running = False  # no callback starts a round after this
+
+    def _check_round_time(self, timeout: float) -> None:
+        """The round under way has run out of time (or a cancel out of its grace): a fault
+        naming the silent nodes (lock held)."""
+        if self._cancelling is not None and time.monotonic() >= self._cancel_deadline:
+            raise NodeFault(self._cancelling)
+        if not self._collecting or time.monotonic() < self._round_started + timeout:
+            return
+        tick = self._tick
+        silent = sorted((self._who & self.members) - set(self._dones))
+        raise NodeFault(
+            f"node(s) {silent} did not answer round {tick.round} "
+            f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
+        )
+
+    def _start_round(self) -> None:
+        """Tick the next round's nodes (lock held)."""
+        planner = self.planner
+        self._stamp_injections(planner.round, planner.t)
+        digests = {k: tuple(sorted(v)) for k, v in sorted(self._announced.items())}
+        expected = {k: len(v) for k, v in digests.items()}
+        sync = planner.round % SYNC_ROUNDS == 0
+        if planner.round == 0:
+            who, named = self.members, None
+        else:
+            who = self.participation.of(planner.t, expected) & self.participants
+            if sync:
+                who |= self.observers
+            named = tuple(sorted(who))
+        tick = Tick(
+            round=planner.round, t=planner.t, expected=expected, digests=digests, participants=named
+        )
+        self._tick, self._who, self._dones = tick, who, {}
+        self._round_started = time.monotonic()
+        self._collecting = True
+        self._publish_tick(tick, self.participants if sync else who)
+
+    def _on_done(self, sample: zenoh.Sample) -> None:
+        """Zenoh's callback for a ``Done``: take it, and if it completes the round, start the
+        next one here (:meth:`_rounds`). What fails is handed to the loop to raise."""
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        with self._lock:
+            if not (self._running and self._collecting):
+                return
+            try:
+                self._take_done(key, payload)
+                self._advance_if_complete()
+            except Exception as err:  # the planner's faults, a closed session: the loop raises
+                self._running, self._failure = False, err
+                self._queue.put(("failed", "", b""))
+
+    def _take_done(self, key: str, payload: bytes) -> None:
+        """Keep a valid ``Done`` of the round under way from a node ticked for it (lock held);
+        anything else is logged and dropped."""
+        try:
+            env = codec.decode_envelope(payload)
+            if env.run != self.run_id:
+                raise SchemaError(f"Done of run {env.run!r} on this run's key")
+            done = codec.decode_body(env, Done)
+        except SchemaError as err:
+            log.warning("clock: dropping invalid Done on %s: %s", key, err)
+            return
+        if done.node not in self._who or env.src != done.node:
+            log.warning("clock: Done from %r, not ticked in this round, ignored", done.node)
+            return
+        if done.round != self._tick.round:
+            return
+        self._dones[done.node] = done
+        self.dropped_invalid[done.node] = done.dropped_invalid
+
+    def _advance_if_complete(self) -> None:
+        """While every node ticked for the round under way has answered (a round may tick
+        nobody), move on: the next tick, or hand the loop the end, the real-time pacing or a
+        cancel (lock held)."""
+        while self._collecting and (self._who & self.members) <= set(self._dones):
+            self._collecting = False
+            if self._cancelling is not None:
+                self._running = False
+                self._queue.put(("halted", "", b""))
+                return
+            planner = self.planner
             t_before = planner.t
             self._announced = {}
-            for node, done in sorted(dones.items()):
+            for node, done in sorted(self._dones.items()):
                 if node not in self.members:
                     continue  # dropped during the round
                 self.ticked[node] = self.ticked.get(node, 0) + 1
@@ -423,9 +504,12 @@ class ClockRunner:
                 {n: self.participation.next_times.get(n) for n in self.participants},
             )
             if planner.finished:
-                return
-            if self.pacer is not None and planner.t > t_before:
-                self._pace(planner.t)
+                self._running = False
+                self._queue.put(("finished", "", b""))
+            elif self.pacer is not None and planner.t > t_before:
+                self._queue.put(("pace", "", b""))  # the loop waits for the wall clock
+            else:
+                self._start_round()
 
     def _pace(self, t: int) -> None:
         """Wait until ``t`` is due in wall time, still watching for faults."""
@@ -434,10 +518,11 @@ class ClockRunner:
             item = self._next(wait)
             if item is not None and item[0] == "cancel":
                 raise NodeFault(item[1])
-            if item is not None and item[0] == "alive":
-                self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
-            elif item is not None and item[0] == "inject":
-                self._take_injection(item[2])  # type: ignore[arg-type]
+            with self._lock:
+                if item is not None and item[0] == "alive":
+                    self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
+                elif item is not None and item[0] == "inject":
+                    self._take_injection(item[2])  # type: ignore[arg-type]
 
     def _wait_for_exit(self, timeout: float) -> None:
         """Give the participants time to see the Stop and leave (the historian flushes)."""

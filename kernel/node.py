@@ -16,11 +16,16 @@ direct engine); this class only moves its messages. Each round it:
    next_time)``
    (an observer, :attr:`BusNode.observer`, only in the rounds it is ticked for).
 
-The behaviour is touched only by the loop thread. Zenoh's callbacks put the clock's messages
-(ticks, the stop) on the loop's queue; a data message the callback checks and files under its
-round itself (:meth:`BusNode._on_data`, under the node's lock), and wakes the loop only when
-the round it waits for is complete: a thread wake-up costs about 40 us, several a round
-(``bench/round_budget.py``). What a callback refuses is counted by the loop (before ``Done``).
+Threads: zenoh-python calls each subscriber's callback in a thread of its own, one sample after
+the other. A node runs its rounds in its tick subscriber's thread (:meth:`BusNode._on_tick`):
+a hop to another thread would cost a wake-up (about 40 us, and a round has several:
+``bench/round_budget.py``). Its loop thread (:meth:`BusNode.run`) takes the stop and the
+clock's departure, ends a round under way (through the queue the round's collection waits on)
+and raises what a round failed with. The behaviour is touched by one thread at a time (the
+node's ``_busy`` lock, held for a round). A data message the callback checks and files under
+its round itself (:meth:`BusNode._on_data`, under the node's lock), and wakes the round only
+when the messages it waits for are complete. What a callback refuses is counted in the round
+(before ``Done``). An observer runs its rounds in the loop thread, from the clock's log.
 """
 
 from __future__ import annotations
@@ -120,6 +125,17 @@ class BusNode:
         # (round, key -> digests) the loop waits on
         self._awaiting: tuple[int, Mapping[str, tuple[int, ...]]] | None = None
         self._rejected: dict[str, tuple[int, str]] = {}  # key -> (count, first reason) to report
+        # A node's rounds run in its tick subscriber's callback thread (an observer's in the
+        # loop's): _busy is held for each round and by the loop while it touches the behaviour
+        # (the stop); _wake is what a round's collection waits on (the data callbacks' "ready",
+        # the stop, the clock gone); _over (under _busy): no more rounds; _failure: why a round
+        # failed, for the loop to raise.
+        self._busy = threading.Lock()
+        self._wake: queue.Queue[tuple[str, str, bytes]] = (
+            self._queue if self.observer else queue.Queue()
+        )
+        self._over = False
+        self._failure: BaseException | None = None
 
     observer = False
     """Whether the node observes every round (:attr:`kernel.clock.ClockSpec.observers`: the
@@ -157,7 +173,10 @@ class BusNode:
         """Serve rounds until the clock stops the run; return the process exit code."""
         session = self.ctx.session
         declared = [
-            session.declare_subscriber(keys.full(self.run_id, rel), self._on_control)
+            session.declare_subscriber(
+                keys.full(self.run_id, rel),
+                self._on_tick if rel == keys.tick_to(self.name) else self._on_control,
+            )
             for rel in self._control_keys
         ]
         for pattern in self.behaviour.patterns:
@@ -174,6 +193,9 @@ class BusNode:
         try:
             return self._serve()
         finally:
+            self._over = True  # no round after this; one under way stops waiting (_wake)
+            if self._wake is not self._queue:
+                self._wake.put(("clock_gone", "", b""))
             # Leaving: the token first (the clock sees us go), subscribers and publishers with the
             # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
             # and makes zenoh log "Unknown token".
@@ -188,13 +210,20 @@ class BusNode:
                 try:
                     kind, key, payload = self._queue.get(timeout=self._timeout)
                 except queue.Empty:
-                    self._flush_rejections()
+                    if self._busy.acquire(blocking=False):  # no round under way
+                        try:
+                            self._flush_rejections()
+                        finally:
+                            self._busy.release()
                     self._check_connected()
                     continue
             if kind == "ready":
                 continue  # a collection's wake-up that came after the collection ended
             if kind == "clock_gone":
                 raise ProtocolError(f"{self.name}: the clock left the run (round {self.round})")
+            if kind == "failed":
+                assert self._failure is not None
+                raise self._failure
             rel = keys.relative(self.run_id, key)
             try:
                 if rel not in self._control_keys:
@@ -208,10 +237,13 @@ class BusNode:
                 else:
                     ticks, stop = (codec.decode_body(env, Tick),), None
             except SchemaError as err:
-                self._reject(rel, str(err))
+                with self._busy:
+                    self._reject(rel, str(err))
                 continue
+            if stop is not None and not self.observer:
+                self._wake.put(("stop", key, payload))  # a round under way (_on_tick) ends now
             try:
-                for tick in ticks:
+                for tick in ticks:  # an observer's, from the clock's log
                     self._round_(tick)
             except _StopRequested as request:
                 self._backlog.insert(0, ("control", request.key, request.payload))
@@ -219,7 +251,9 @@ class BusNode:
             finally:
                 self.on_handled()
             if stop is not None:
-                self.on_stop(stop)
+                with self._busy:
+                    self._over = True
+                    self.on_stop(stop)
                 self.log.info("stopped by the clock: %s", stop.reason or "end of run")
                 return 0
 
@@ -301,16 +335,45 @@ class BusNode:
             self._accept(key, payload)
             if self._awaiting is not None and not self._missing(*self._awaiting):
                 self._awaiting = None
-                self._queue.put(("ready", "", b""))
+                self._wake.put(("ready", "", b""))
+
+    def _on_tick(self, sample: zenoh.Sample) -> None:
+        """Zenoh's callback for this node's tick: runs the round in zenoh's thread for the
+        subscriber (one thread wake-up less per tick than a hop to the loop's thread; zenoh
+        calls it for one tick after the other). What fails is handed to the loop to raise; a
+        stop that ends the round (``_StopRequested``) the loop has too."""
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        with self._busy:
+            if self._over:
+                return
+            try:
+                tick = codec.decode_body(self._control(payload), Tick)
+            except SchemaError as err:
+                self._reject(keys.relative(self.run_id, key), str(err))
+                return
+            try:
+                self._round_(tick)
+            except _StopRequested:
+                return
+            except BaseException as err:  # noqa: BLE001 - the loop raises it
+                self._over, self._failure = True, err
+                self._queue.put(("failed", "", b""))
 
     def abort(self) -> None:
         """Leave the run at the next wait (thread-safe): the launcher's way to stop a node that
         joined after the clock had already stopped the run (it would never see the ``Stop``)."""
-        self._queue.put(("clock_gone", "", b""))
+        self._leave()
 
     def _on_clock_liveliness(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.DELETE:
-            self._queue.put(("clock_gone", "", b""))
+            self._leave()
+
+    def _leave(self) -> None:
+        """The clock is gone (or the launcher says so): the loop raises, a round under way
+        ends."""
+        self._queue.put(("clock_gone", "", b""))
+        if self._wake is not self._queue:
+            self._wake.put(("clock_gone", "", b""))
 
     def _accept(self, key: str, payload: bytes) -> None:
         """Check one raw data message and file it under its round (or drop it as invalid; the
@@ -395,7 +458,7 @@ class BusNode:
                 if not missing:
                     break
                 try:
-                    kind, key, payload = self._queue.get(
+                    kind, key, payload = self._wake.get(
                         timeout=max(deadline - time.monotonic(), 0.0)
                     )
                 except queue.Empty:
