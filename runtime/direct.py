@@ -26,7 +26,7 @@ from core.record import RunRecord
 from core.time import to_ticks
 from runtime.engine import DirectEngine, Message
 from runtime.records import RecordBuilder
-from runtime.scenario import NODE_KINDS, Scenario
+from runtime.scenario import HISTORIAN, NODE_KINDS, Scenario
 
 __all__ = [
     "behaviour_of",
@@ -39,7 +39,7 @@ __all__ = [
 
 def check_node(scenario: Scenario, name: str) -> None:
     """Raise ``KeyError`` naming the known nodes if ``scenario`` has no node ``name``."""
-    if name != "historian" and name not in scenario.nodes:
+    if name != HISTORIAN and name not in scenario.nodes:
         known = ", ".join(["clock", *scenario.participants()])
         raise KeyError(f"scenario {scenario.name!r} has no node {name!r} (nodes: {known})")
 

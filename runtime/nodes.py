@@ -15,7 +15,7 @@ from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
 from runtime.inject import interpreter
 from runtime.ownership import OBSERVERS, publishers
-from runtime.scenario import Scenario
+from runtime.scenario import HISTORIAN, Scenario
 
 __all__ = ["bus_node", "check_node", "clock_spec", "clock_runner"]
 
@@ -37,7 +37,7 @@ def bus_node(
         options=dict(options or {}),
         publishers=publishers(scenario),
     )
-    if name == "historian":
+    if name == HISTORIAN:
         return HistorianNode(ctx, scenario_name=scenario.name, seed=scenario.seed)
     return BusNode(ctx, behaviour_of(scenario, name))
 

@@ -28,14 +28,14 @@ from __future__ import annotations
 
 from agents.monitor.config import MonitorNodeConfig
 from bus_schemas import keys
-from runtime.scenario import ControllerNodeConfig, OperatorNodeConfig, Scenario
+from runtime.scenario import HISTORIAN, ControllerNodeConfig, OperatorNodeConfig, Scenario
 
 __all__ = ["CLOCK", "OBSERVERS", "publishers", "readers", "owners_of"]
 
 CLOCK = "clock"
 """The clock's name on the bus (it stamps external requests as its own messages)."""
 
-OBSERVERS = frozenset({"historian"})
+OBSERVERS = frozenset({HISTORIAN})
 """The participants that observe the rounds (:attr:`kernel.clock.ClockSpec.observers`): they
 take the clock's log of ticks (``clock/log``) rather than ticks of their own."""
 
@@ -96,5 +96,5 @@ def readers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
         out[agent] |= {"net/*", "ops/*", "ops/setpoint/*", "loop/*/meas"}
     for monitor in scenario.nodes_of(MonitorNodeConfig):
         out[monitor] |= {"plant/**", "loop/**", "ops/**"}
-    out["historian"] |= set(keys.data_all())
+    out[HISTORIAN] |= set(keys.data_all())
     return {n: tuple(sorted(p)) for n, p in sorted(out.items())}

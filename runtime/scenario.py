@@ -82,6 +82,7 @@ from runtime.specs import (
 from runtime.yaml_positions import field_line, message_path, read_yaml
 
 __all__ = [
+    "HISTORIAN",
     "RESERVED_NODES",
     "NODE_KINDS",
     "BehaviourBuild",
@@ -101,7 +102,10 @@ __all__ = [
     "parse_scenario",
 ]
 
-RESERVED_NODES = ("clock", "historian")
+HISTORIAN = "historian"
+"""The historian's name: a participant of every run, not one of the scenario's nodes."""
+
+RESERVED_NODES = ("clock", HISTORIAN)
 
 _C = TypeVar("_C", bound=BaseModel)
 
@@ -1037,7 +1041,7 @@ class Scenario(BaseModel):
 
     def participants(self) -> list[str]:
         """Every node that takes part in clock rounds: the scenario's nodes and the historian."""
-        return sorted([*self.nodes, "historian"])
+        return sorted([*self.nodes, HISTORIAN])
 
     def with_loops(
         self,

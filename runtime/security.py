@@ -44,7 +44,6 @@ __all__ = [
     "SECURITY_ENV",
     "INJECT",
     "DASHBOARD",
-    "HISTORIAN",
     "LAUNCHER",
     "use_node_credentials",
     "grants",
@@ -64,7 +63,6 @@ authenticates with ``NAME.json`` from it (the launcher sets it for its node proc
 
 INJECT = "inject"
 DASHBOARD = "dashboard"
-HISTORIAN = "historian"
 LAUNCHER = "launcher"
 
 
