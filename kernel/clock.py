@@ -385,13 +385,8 @@ class ClockRunner:
                             raise NodeFault(key)
                         self._cancelling = key
                         self._cancel_deadline = time.monotonic() + CANCEL_GRACE_S
-                elif kind == "alive":
-                    with self._lock:
-                        self._handle_alive(key, payload)  # type: ignore[arg-type]
-                        self._advance_if_complete()  # a node dropped may complete the round
-                elif kind == "inject":
-                    with self._lock:
-                        self._take_injection(payload)  # type: ignore[arg-type]
+                elif kind in ("alive", "inject"):
+                    self._take_watched(item)
                 elif kind == "halted":
                     assert self._cancelling is not None
                     raise NodeFault(self._cancelling)
@@ -518,11 +513,19 @@ class ClockRunner:
             item = self._next(wait)
             if item is not None and item[0] == "cancel":
                 raise NodeFault(item[1])
-            with self._lock:
-                if item is not None and item[0] == "alive":
-                    self._handle_alive(item[1], item[2])  # type: ignore[arg-type]
-                elif item is not None and item[0] == "inject":
-                    self._take_injection(item[2])  # type: ignore[arg-type]
+            if item is not None:
+                self._take_watched(item)
+
+    def _take_watched(self, item: tuple[str, str, bytes | zenoh.SampleKind]) -> None:
+        """A liveliness change (a node dropped may complete the round under way) or a request
+        of ``wncs inject``; anything else on the queue is not this method's."""
+        kind, key, payload = item
+        with self._lock:
+            if kind == "alive":
+                self._handle_alive(key, payload)  # type: ignore[arg-type]
+                self._advance_if_complete()
+            elif kind == "inject":
+                self._take_injection(payload)  # type: ignore[arg-type]
 
     def _wait_for_exit(self, timeout: float) -> None:
         """Give the participants time to see the Stop and leave (the historian flushes)."""

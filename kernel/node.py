@@ -128,8 +128,9 @@ class BusNode:
         # A node's rounds run in its tick subscriber's callback thread (an observer's in the
         # loop's): _busy is held for each round and by the loop while it touches the behaviour
         # (the stop); _wake is what a round's collection waits on (the data callbacks' "ready",
-        # the stop, the clock gone); _over (under _busy): no more rounds; _failure: why a round
-        # failed, for the loop to raise.
+        # the stop, the clock gone); _over: no more rounds (set under _busy, but when the loop
+        # exits, which cannot wait for a hung round); _failure: why a round failed, for the
+        # loop to raise.
         self._busy = threading.Lock()
         self._wake: queue.Queue[tuple[str, str, bytes]] = (
             self._queue if self.observer else queue.Queue()
@@ -193,9 +194,8 @@ class BusNode:
         try:
             return self._serve()
         finally:
-            self._over = True  # no round after this; one under way stops waiting (_wake)
-            if self._wake is not self._queue:
-                self._wake.put(("clock_gone", "", b""))
+            self._over = True  # no round after this; one under way stops waiting
+            self._interrupt_round("clock_gone")
             # Leaving: the token first (the clock sees us go), subscribers and publishers with the
             # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
             # and makes zenoh log "Unknown token".
@@ -240,8 +240,8 @@ class BusNode:
                 with self._busy:
                     self._reject(rel, str(err))
                 continue
-            if stop is not None and not self.observer:
-                self._wake.put(("stop", key, payload))  # a round under way (_on_tick) ends now
+            if stop is not None:
+                self._interrupt_round("stop", key, payload)  # a round under way ends now
             try:
                 for tick in ticks:  # an observer's, from the clock's log
                     self._round_(tick)
@@ -372,8 +372,14 @@ class BusNode:
         """The clock is gone (or the launcher says so): the loop raises, a round under way
         ends."""
         self._queue.put(("clock_gone", "", b""))
+        self._interrupt_round("clock_gone")
+
+    def _interrupt_round(self, kind: str, key: str = "", payload: bytes = b"") -> None:
+        """End a round under way in the tick's callback (:meth:`_on_tick`): its collection
+        waits on ``_wake``. An observer's rounds run in the loop, which has the message
+        already."""
         if self._wake is not self._queue:
-            self._wake.put(("clock_gone", "", b""))
+            self._wake.put((kind, key, payload))
 
     def _accept(self, key: str, payload: bytes) -> None:
         """Check one raw data message and file it under its round (or drop it as invalid; the
