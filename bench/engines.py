@@ -9,7 +9,12 @@ holds; with sparse rounds a node is ticked only when it has a timer due or a mes
 and the floor it is compared with: one Zenoh round trip client -> router -> client -> router ->
 client on loopback (a ping answered by a second client), measured right before each launch
 (median of 200 pings; this shared machine's round trip moves by 2x within an hour, so each
-launch is set against its own floor and the ratios' median printed).
+launch is set against its own floor and the ratios' median printed). The floor is measured
+twice: with the router and the two clients placed as the engine places the clock, the router and
+a node (a router process; the answering client in this process for the threads engine, in a
+process of its own for the processes engine), and with all three in this process, where zenoh
+crosses no process boundary (about 0.1 ms with the threads of ``kernel.bus.RUNTIME``, 2-4x
+faster than across processes: the floor no run's round can reach).
 
 With ``--against REV`` it first times the direct engine here and at git revision ``REV``
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
@@ -21,8 +26,11 @@ ratio: the before-and-after figure of a change to the engine.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sqlite3
 import statistics
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -30,7 +38,8 @@ from pathlib import Path
 
 from against import Comparison
 
-from kernel.bus import open_client, open_router
+from kernel.bus import Session, open_client, open_router
+from kernel.router_process import RouterProcess
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
@@ -64,33 +73,73 @@ def against(rev: str, rounds: int) -> None:
     print(f"this tree / {rev}: {min(ours) / min(theirs):.2f} (fastest against fastest)\n")
 
 
-def round_trip_ms(n: int = 300) -> float:
-    """Median wall time of one ping answered by another client through an embedded router."""
-    router, locators = open_router("tcp/127.0.0.1:0")
-    endpoint = next(loc for loc in locators if loc.startswith("tcp/"))
-    a, b = open_client(endpoint), open_client(endpoint)
-    got = threading.Event()
-    subs = [
-        b.declare_subscriber("bench/ping", lambda s: b.put("bench/pong", s.payload.to_bytes())),
-        a.declare_subscriber("bench/pong", lambda s: got.set()),
-    ]
+_PONG = """
+import sys
+from kernel.bus import open_client
+session = open_client(sys.argv[1])
+sub = session.declare_subscriber(
+    "bench/ping", lambda s: session.put("bench/pong", s.payload.to_bytes())
+)
+print("ready", flush=True)
+sys.stdin.read()
+"""
+
+
+def _ping(a: Session, answered: threading.Event, n: int) -> float:
+    """Median ms of ``n`` pings from ``a`` (after 20 to warm up), ``answered`` set by the pong."""
     times = []
-    try:
-        time.sleep(0.5)  # let the subscriptions reach the router
-        for _ in range(n + 20):
-            got.clear()
-            t0 = time.perf_counter()
-            a.put("bench/ping", b"x")
-            if not got.wait(2.0):
-                continue
+    time.sleep(0.5)  # let the subscriptions reach the router
+    for _ in range(n + 20):
+        answered.clear()
+        t0 = time.perf_counter()
+        a.put("bench/ping", b"x")
+        if answered.wait(2.0):
             times.append(time.perf_counter() - t0)
-    finally:
-        for sub in subs:
-            sub.undeclare()
-        a.close()
-        b.close()
-        router.close()
+    if len(times) <= 20:
+        raise SystemExit("the round-trip probe got no answers")
     return statistics.median(times[20:]) * 1e3
+
+
+def round_trip_ms(n: int = 300, topology: str = "in-process") -> float:
+    """Median wall time of one ping answered by another client through a router.
+
+    ``topology`` places them: ``"in-process"``, a router embedded here and both clients here;
+    ``"threads"``, the threads engine's: a router process (:class:`RouterProcess`, as a run
+    starts it) and both clients here; ``"processes"``, the processes engine's: a router process,
+    the pinging client here and the answering one in a process of its own.
+    """
+    answered = threading.Event()
+    with contextlib.ExitStack() as stack:  # closes what it opened, last first
+        if topology == "in-process":
+            router, locators = open_router("tcp/127.0.0.1:0")
+            stack.callback(router.close)
+        else:
+            router_process = RouterProcess("tcp/127.0.0.1:0")
+            locators = router_process.locators
+            stack.callback(router_process.close)
+        endpoint = next(loc for loc in locators if loc.startswith("tcp/"))
+        a = open_client(endpoint)
+        stack.callback(a.close)
+        stack.callback(a.declare_subscriber("bench/pong", lambda s: answered.set()).undeclare)
+        if topology == "processes":
+            child = subprocess.Popen(
+                [sys.executable, "-c", _PONG, endpoint],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            stack.callback(child.wait)
+            stack.callback(child.kill)
+            assert child.stdout is not None
+            child.stdout.readline()  # its subscriber is declared
+        else:
+            b = open_client(endpoint)
+            stack.callback(b.close)
+            pong = b.declare_subscriber(
+                "bench/ping", lambda s: b.put("bench/pong", s.payload.to_bytes())
+            )
+            stack.callback(pong.undeclare)
+        return _ping(a, answered, n)
 
 
 def rounds_of(run_dir: Path) -> int:
@@ -125,14 +174,15 @@ def main() -> None:
 
     rows = {}
     rounds: dict[str, int] = {}
-    ratios: dict[str, list[float]] = {"threads": [], "processes": []}
-    floors: list[float] = []
+    # per engine: (its run's ms per round, its topology's round trip, the in-process one)
+    launches: dict[str, list[tuple[float, float, float]]] = {"threads": [], "processes": []}
     with tempfile.TemporaryDirectory() as tmp:
         for engine in ("direct", "threads", "processes"):
             walls, runs, starts = [], [], []
             for i in range(args.repeat):
-                if engine != "direct":  # the floor of this very launch, just before it
-                    floors.append(round_trip_ms(200))
+                if engine != "direct":  # the floors of this very launch, just before it
+                    floor = round_trip_ms(200, topology=engine)
+                    floor_here = round_trip_ms(200)
                 res = launch(SCENARIO, Path(tmp) / f"{engine}{i}", engine=engine)
                 if res.code != 0:
                     raise SystemExit(f"{engine}: {res.error}")
@@ -142,8 +192,7 @@ def main() -> None:
                 starts.append(s["phases_s"].get("startup", 0.0))
                 if engine != "direct":
                     rounds[engine] = rounds_of(Path(tmp) / f"{engine}{i}")
-                    per_round = runs[-1] / rounds[engine] * 1e3
-                    ratios[engine].append(per_round / floors[-1])
+                    launches[engine].append((runs[-1] / rounds[engine] * 1e3, floor, floor_here))
             rows[engine] = (
                 statistics.median(walls),
                 statistics.median(runs),
@@ -159,19 +208,24 @@ def main() -> None:
             f"| {run / base_run:.0f}x |"
         )
     print(f"\nmedians of {args.repeat} launches each (wncs run incl. summary and plots)")
-    lo, hi, mid = min(floors), max(floors), statistics.median(floors)
     print(
-        "\nZenoh round trip on loopback (client -> router -> client and back), measured before "
-        f"each launch: {lo:.3f}-{hi:.3f} ms, median {mid:.3f}"
+        "\nper round against the Zenoh round trip (client -> router -> client and back) measured "
+        "right before each launch, with the router and clients placed as the engine places "
+        "them, and with all three in this process; ratios are medians of the launches' own"
     )
-    print("| engine | rounds | run ms per round | per round / its launch's round trip (median) |")
-    print("|---|---:|---:|---:|")
-    for engine in ("threads", "processes"):
-        per_round = rows[engine][1] / rounds[engine] * 1e3
-        each = ", ".join(f"{r:.1f}" for r in ratios[engine])
+    print(
+        "| engine | rounds | run ms per round | round trip as the engine places them, ms | "
+        "per round / that | round trip in one process, ms | per round / that |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for engine, each in launches.items():
+        per_round, floor, floor_here = (statistics.median(x) for x in zip(*each, strict=True))
+        ratio = [r / f for r, f, _ in each]
+        ratio_here = [r / f for r, _, f in each]
         print(
-            f"| {engine} | {rounds[engine]} | {per_round:.3f} | "
-            f"{statistics.median(ratios[engine]):.1f}x ({each}) |"
+            f"| {engine} | {rounds[engine]} | {per_round:.3f} | {floor:.3f} | "
+            f"{statistics.median(ratio):.1f}x ({', '.join(f'{x:.1f}' for x in ratio)}) | "
+            f"{floor_here:.3f} | {statistics.median(ratio_here):.1f}x |"
         )
 
 
