@@ -126,10 +126,15 @@ class ClockConfig(BaseModel):
     model_config = _STRICT
 
     round_timeout_s: float = Field(
-        default=10.0, gt=0, description="a participant silent this long in a round is a fault"
+        default=10.0,
+        gt=0,
+        description="a participant silent this long in a round is a fault (round 0, where nodes "
+        "do their one-off work, has startup_timeout_s)",
     )
     startup_timeout_s: float = Field(
-        default=120.0, gt=0, description="time for every participant to come alive"
+        default=120.0,
+        gt=0,
+        description="time for every participant to come alive, and then to answer round 0",
     )
     max_microsteps: int = Field(
         default=10_000, gt=0, description="rounds allowed at one instant before it is an error"

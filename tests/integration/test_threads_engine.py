@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 
 import msgpack
 import yaml
@@ -272,3 +273,38 @@ def test_a_lagging_historian_records_every_round_before_it_takes_the_stop(tmp_pa
     assert messages_digest(tmp_path / "lag" / "history.sqlite") == messages_digest(
         tmp_path / "full" / "history.sqlite"
     )
+
+
+def _slow_in(round_to_slow: str, seconds: float):
+    """An operator that takes ``seconds`` over round 0 (``"first"``) or over the first later
+    round it takes part in (``"later"``): a node's one-off work, or a hang."""
+
+    class Slow(OperatorBehaviour):
+        def begin_round(self, round_: int, t: int) -> None:
+            super().begin_round(round_, t)
+            slow = round_ == 0 if round_to_slow == "first" else round_ > 0
+            if slow and not getattr(self, "_slowed", False):
+                self._slowed = True
+                time.sleep(seconds)  # the node's work, not the test waiting for something
+
+    return Slow
+
+
+def _short_round_timeout(data) -> None:
+    data["clock"] = {**data.get("clock", {}), "round_timeout_s": 0.5, "startup_timeout_s": 60}
+
+
+def test_round_0_is_timed_as_start_up_and_later_rounds_by_the_round_timeout(tmp_path, stand_in):
+    """Round 0, where nodes do their one-off work (a gateway's predicted delay distributions
+    take seconds at 100 loops), has ``startup_timeout_s``; a node as slow in a later round is a
+    fault named by the clock."""
+    scenario = write_variant(tmp_path, BENCHMARK, "short.yaml", _short_round_timeout)
+    stand_in("operator", _slow_in("first", 1.5))
+    res = launch(scenario, tmp_path / "first", engine="threads")
+    assert res.code == 0, res.error
+
+    stand_in("operator", _slow_in("later", 1.5))
+    res = launch(scenario, tmp_path / "later", engine="threads")
+    assert res.code == 3  # a fault stopped the run
+    assert "node(s) ['operator'] did not answer round" in res.error
+    assert "within 0.5 s" in res.error
