@@ -156,8 +156,10 @@ A round trip within one process falls from about 0.3 ms to 0.1 ms."""
 
 
 def _set_runtime() -> None:
-    """Ask for :data:`RUNTIME` before this process's first session (a user's setting wins)."""
-    os.environ.setdefault(RUNTIME_ENV, RUNTIME)
+    """Ask for :data:`RUNTIME` before this process's first session (a user's setting wins; an
+    empty one, which zenoh cannot parse, counts as none)."""
+    if not os.environ.get(RUNTIME_ENV, "").strip():
+        os.environ[RUNTIME_ENV] = RUNTIME
 
 
 _NO_SCOUTING_WAIT = "scouting/delay:0"

@@ -10,6 +10,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from kernel.bus import RUNTIME
 
 PROBE = """
@@ -35,8 +37,11 @@ def _zenoh_threads(env: dict[str, str]) -> tuple[set[str], str | None]:
     return runtimes, said["env"]
 
 
-def test_a_run_s_sessions_hand_their_work_to_the_application_runtime() -> None:
+@pytest.mark.parametrize("given", [None, ""])
+def test_a_run_s_sessions_hand_their_work_to_the_application_runtime(given: str | None) -> None:
     env = {k: v for k, v in os.environ.items() if k != "ZENOH_RUNTIME"}
+    if given is not None:  # set but empty: zenoh would fail to parse it
+        env["ZENOH_RUNTIME"] = given
     runtimes, asked = _zenoh_threads(env)
     assert asked == RUNTIME
     assert "app" in runtimes
