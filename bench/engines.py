@@ -13,8 +13,9 @@ launch is set against its own floor and the ratios' median printed). The floor i
 twice: with the router and the two clients placed as the engine places the clock, the router and
 a node (a router process; the answering client in this process for the threads engine, in a
 process of its own for the processes engine), and with all three in this process, where zenoh
-crosses no process boundary (about 0.1 ms with the threads of ``kernel.bus.RUNTIME``, 2-4x
-faster than across processes: the floor no run's round can reach).
+crosses no process boundary (a floor no run's round can reach; with ``ZENOH_RUNTIME='(rx:
+(handover: app), tx: (handover: app), acc: (handover: app))'`` it is about 0.1 ms, 2-4x faster
+than across processes: ``docs/benchmarks.md``).
 
 With ``--against REV`` it first times the direct engine here and at git revision ``REV``
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their

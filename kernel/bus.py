@@ -38,8 +38,6 @@ __all__ = [
     "base_config",
     "CONFIG_ENV",
     "CREDENTIALS_ENV",
-    "RUNTIME",
-    "RUNTIME_ENV",
 ]
 
 Session = zenoh.Session
@@ -140,28 +138,6 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     return conf
 
 
-RUNTIME_ENV = "ZENOH_RUNTIME"
-"""The environment variable zenoh reads its threads' settings from, once per process, when it
-first needs them (the process's first session); later changes do nothing."""
-
-RUNTIME = "(rx: (handover: app), tx: (handover: app), acc: (handover: app))"
-"""Zenoh's threads in every process of a run (unless ``$ZENOH_RUNTIME`` says otherwise): its
-receive (two threads by default), transmit and accept runtimes hand their work to its
-application runtime, zenoh's documented ``handover`` setting (``zenoh_runtime``), so a process
-runs two or three zenoh threads instead of six. A message then wakes fewer threads, and a run
-on two shared cores is bound by CPU (``perf``: switching threads was a third of it). Against
-zenoh's default, alternated runs of the benchmark (``docs/benchmarks.md``, 2026-12-03): a round
-faster in 7 of 8 comparisons, by 3-34 %; the router's CPU per round down by a third to a half.
-A round trip within one process falls from about 0.3 ms to 0.1 ms."""
-
-
-def _set_runtime() -> None:
-    """Ask for :data:`RUNTIME` before this process's first session (a user's setting wins; an
-    empty one, which zenoh cannot parse, counts as none)."""
-    if not os.environ.get(RUNTIME_ENV, "").strip():
-        os.environ[RUNTIME_ENV] = RUNTIME
-
-
 _NO_SCOUTING_WAIT = "scouting/delay:0"
 """zenoh's open waits ``scouting/delay`` (500 ms) for other nodes to answer its scouting; with
 multicast scouting off and no router to join, none can, so a router that joins nothing does not
@@ -179,7 +155,6 @@ def open_router(
     ``settings`` (its security: :func:`kernel.security.router_settings`); return it and its
     actual locators."""
     init_zenoh_log()
-    _set_runtime()
     cfg = BusConfig(
         mode="router",
         listen=(listen,),
@@ -216,7 +191,6 @@ def open_client(
         run: no certificate of the run, a host name the router's certificate does not cover).
     """
     init_zenoh_log()
-    _set_runtime()
     if settings is None and os.environ.get(CREDENTIALS_ENV):
         settings = client_settings(read_credential(Path(os.environ[CREDENTIALS_ENV])))
     cfg = BusConfig(
