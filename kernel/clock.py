@@ -378,7 +378,7 @@ class ClockRunner:
                 item = self._next(wait)
                 if item is None:
                     with self._lock:
-                        self._check_round_time(self._round_timeout())
+                        self._check_round_time()
                     continue
                 kind, key, payload = item
                 if kind == "cancel":  # end the round first: the ticked nodes then handled all
@@ -413,11 +413,12 @@ class ClockRunner:
         is still start-up and has ``startup_timeout_s``; every later round ``round_timeout_s``."""
         return self.spec.startup_timeout_s if self._tick.round == 0 else self.spec.round_timeout_s
 
-    def _check_round_time(self, timeout: float) -> None:
-        """The round under way has run out of time (or a cancel out of its grace): a fault
-        naming the silent nodes (lock held)."""
+    def _check_round_time(self) -> None:
+        """The round under way has run out of its time (:meth:`_round_timeout`), or a cancel out
+        of its grace: a fault naming the silent nodes (lock held)."""
         if self._cancelling is not None and time.monotonic() >= self._cancel_deadline:
             raise NodeFault(self._cancelling)
+        timeout = self._round_timeout()
         if not self._collecting or time.monotonic() < self._round_started + timeout:
             return
         tick = self._tick

@@ -275,9 +275,10 @@ def test_a_lagging_historian_records_every_round_before_it_takes_the_stop(tmp_pa
     )
 
 
-def _slow_in(round_to_slow: str, seconds: float):
-    """An operator that takes ``seconds`` over round 0 (``"first"``) or over the first later
-    round it takes part in (``"later"``): a node's one-off work, or a hang."""
+def _slow_in(round_to_slow: str, clock_timed_it: threading.Event):
+    """An operator that holds round 0 (``"first"``) or the first later round it takes part in
+    (``"later"``) until the clock has timed that round past ``round_timeout_s``: a node's
+    one-off work, or a hang."""
 
     class Slow(OperatorBehaviour):
         def begin_round(self, round_: int, t: int) -> None:
@@ -285,25 +286,46 @@ def _slow_in(round_to_slow: str, seconds: float):
             slow = round_ == 0 if round_to_slow == "first" else round_ > 0
             if slow and not getattr(self, "_slowed", False):
                 self._slowed = True
-                time.sleep(seconds)  # the node's work, not the test waiting for something
+                assert clock_timed_it.wait(60), "the clock never timed the round"
 
     return Slow
+
+
+def _clock_timing(monkeypatch) -> threading.Event:
+    """Set once the clock has checked a round's time after ``round_timeout_s`` had passed (the
+    check itself may then end the run)."""
+    timed = threading.Event()
+    check = ClockRunner._check_round_time
+
+    def checked(self: ClockRunner) -> None:
+        try:
+            check(self)
+        finally:
+            if time.monotonic() - self._round_started >= self.spec.round_timeout_s:
+                timed.set()
+
+    monkeypatch.setattr(ClockRunner, "_check_round_time", checked)
+    return timed
 
 
 def _short_round_timeout(data) -> None:
     data["clock"] = {**data.get("clock", {}), "round_timeout_s": 0.5, "startup_timeout_s": 60}
 
 
-def test_round_0_is_timed_as_start_up_and_later_rounds_by_the_round_timeout(tmp_path, stand_in):
+def test_round_0_is_timed_as_start_up_and_later_rounds_by_the_round_timeout(
+    tmp_path, stand_in, monkeypatch
+):
     """Round 0, where nodes do their one-off work (a gateway's predicted delay distributions
     take seconds at 100 loops), has ``startup_timeout_s``; a node as slow in a later round is a
     fault named by the clock."""
     scenario = write_variant(tmp_path, BENCHMARK, "short.yaml", _short_round_timeout)
-    stand_in("operator", _slow_in("first", 1.5))
+    timed = _clock_timing(monkeypatch)
+    stand_in("operator", _slow_in("first", timed))
     res = launch(scenario, tmp_path / "first", engine="threads")
     assert res.code == 0, res.error
 
-    stand_in("operator", _slow_in("later", 1.5))
+    timed.clear()
+    stand_in("operator", _slow_in("later", timed))
     res = launch(scenario, tmp_path / "later", engine="threads")
     assert res.code == 3  # a fault stopped the run
     assert "node(s) ['operator'] did not answer round" in res.error
