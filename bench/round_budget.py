@@ -31,7 +31,10 @@ a round alone, in one thread, and multiplies by how often a run does it:
 Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
 of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover
 is the rounds' critical path: the tick's and the Dones' trips over the router and the threads
-waiting for the interpreter lock.
+waiting for the interpreter lock. So a second threads run is stamped (:func:`critical_path`):
+for each round with one node taking part, the tick's way out to the node's callback, the node's
+round, its ``Done``'s way back to the clock's callback and the clock's work to the next tick,
+set beside the skeleton's one way; and how much of the run its slowest rounds hold.
 
     .venv/bin/python bench/round_budget.py [SCENARIO]
 """
@@ -49,12 +52,14 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from engines import round_trip_ms, rounds_of
 
 from bus_schemas import Done, Stop, Tick, codec
 from kernel.bus import open_client, open_router
 from kernel.clock import SYNC_ROUNDS, ClockRunner
+from kernel.node import BusNode
 from kernel.router_process import RouterProcess
 from runtime.direct import behaviour_of
 from runtime.history import connect
@@ -241,6 +246,83 @@ def counts(scenario_path: Path) -> tuple[dict[str, float], float, int]:
     return per_round, run_ms / rounds, rounds
 
 
+SEGMENTS = (
+    "tick out -> the node's tick callback (clock -> router -> node, the callback's thread)",
+    "the node's round (decode, collect, behaviour, its puts and its Done)",
+    "the node's Done -> the clock's Done callback (node -> router -> clock)",
+    "the clock's Done callback -> the next tick out (decode, plan, encode, put)",
+)
+
+
+def critical_path(scenario_path: Path) -> tuple[dict[str, list[float]], list[float]]:
+    """Where the wall time of a threads run's rounds goes: stamps (``perf_counter``, one clock
+    for every thread) at each tick published, each node's tick callback entered and left, and
+    each ``Done`` callback of the clock entered. Returns, in microseconds, the four
+    :data:`SEGMENTS` of every round in which exactly one node took part (its tick to the next
+    tick; the rounds with more nodes overlap theirs), and every round's length."""
+    ticks: dict[int, float] = {}
+    nodes: dict[int, list[tuple[float, float]]] = {}
+    dones: dict[int, list[float]] = {}
+    local = threading.local()
+    publish_tick, on_tick, round_, on_done = (
+        ClockRunner._publish_tick,
+        BusNode._on_tick,
+        BusNode._round_,
+        ClockRunner._on_done,
+    )
+
+    def stamped_publish_tick(self: ClockRunner, tick: Tick, to: frozenset[str]) -> None:
+        publish_tick(self, tick, to)
+        ticks[tick.round] = time.perf_counter()
+
+    def stamped_on_tick(self: BusNode, sample: Any) -> None:
+        t0, local.round = time.perf_counter(), None
+        try:
+            on_tick(self, sample)
+        finally:
+            if local.round is not None:
+                nodes.setdefault(local.round, []).append((t0, time.perf_counter()))
+
+    def noted_round(self: BusNode, tick: Tick) -> None:
+        local.round = tick.round
+        round_(self, tick)
+
+    def stamped_on_done(self: ClockRunner, sample: Any) -> None:
+        dones.setdefault(self._tick.round, []).append(time.perf_counter())
+        on_done(self, sample)
+
+    patches = {
+        (ClockRunner, "_publish_tick"): stamped_publish_tick,
+        (BusNode, "_on_tick"): stamped_on_tick,
+        (BusNode, "_round_"): noted_round,
+        (ClockRunner, "_on_done"): stamped_on_done,
+    }
+    originals = {where: getattr(*where) for where in patches}
+    for (cls, name), fn in patches.items():
+        setattr(cls, name, fn)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            res = launch(scenario_path, Path(tmp) / "run", engine="threads")
+    finally:
+        for (cls, name), fn in originals.items():
+            setattr(cls, name, fn)
+    if res.code != 0:
+        raise SystemExit(res.error)
+    segments: dict[str, list[float]] = {s: [] for s in SEGMENTS}
+    lengths = []
+    for r in range(1, max(ticks)):  # round 0 is start-up
+        if r + 1 not in ticks:
+            continue
+        lengths.append((ticks[r + 1] - ticks[r]) * 1e6)
+        if len(nodes.get(r, ())) != 1 or len(dones.get(r, ())) != 1:
+            continue
+        (t_in, t_out), (t_done,) = nodes[r][0], dones[r]
+        stamps = (ticks[r], t_in, t_out, t_done, ticks[r + 1])
+        for what, (a, b) in zip(SEGMENTS, itertools.pairwise(stamps), strict=True):
+            segments[what].append((b - a) * 1e6)
+    return segments, lengths
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", type=Path, default=SCENARIO)
@@ -292,6 +374,26 @@ def main() -> None:
         f"the round's skeleton (tick to a node's callback, Done back to the clock's callback, no "
         f"work): {bare * 1e3:.0f} us, {bare / floor:.1f}x the round trip; the run's rounds "
         f"cost {wall_ms / bare:.1f}x their skeleton"
+    )
+    segments, lengths = critical_path(args.scenario)
+    n_single = len(next(iter(segments.values())))
+    mean_single = sum(statistics.mean(v) for v in segments.values())
+    print(
+        f"\nthe critical path, from stamps in a second threads run: the {n_single} of "
+        f"{len(lengths)} rounds with one node taking part (mean {mean_single:.0f} us)"
+    )
+    print("| segment | median us | mean us | share of the mean |")
+    print("|---|---:|---:|---:|")
+    for what, xs in segments.items():
+        mean = statistics.mean(xs)
+        print(f"| {what} | {statistics.median(xs):.0f} | {mean:.0f} | {mean / mean_single:.0%} |")
+    lengths.sort()
+    slow = [x for x in lengths if x > 2000]
+    print(
+        f"every round: median {statistics.median(lengths):.0f} us, 90th percentile "
+        f"{lengths[int(0.9 * len(lengths))]:.0f} us, longest {lengths[-1]:.0f} us; rounds over "
+        f"2 ms: {len(slow)} holding {sum(slow) / sum(lengths):.0%} of the run; the skeleton's "
+        f"one way is {bare * 1e3 / 2:.0f} us"
     )
 
 
