@@ -38,6 +38,7 @@ __all__ = [
     "base_config",
     "CONFIG_ENV",
     "CREDENTIALS_ENV",
+    "RUNTIME_ENV",
 ]
 
 Session = zenoh.Session
@@ -103,6 +104,30 @@ CONFIG_ENV = "ZENOH_CONFIG"
 """The environment variable naming a zenoh configuration file, when ``--zenoh-config`` is not
 given."""
 
+RUNTIME_ENV = "ZENOH_RUNTIME"
+"""zenoh's own environment variable for its threads (RON, e.g. ``(rx: (handover: app))``), read
+when a process opens its first session; ``docs/benchmarks.md`` measures one setting. zenoh
+panics on a value it cannot parse, an empty one too: :func:`_open` counts an empty value as
+unset and turns the panic into a :class:`ConfigError` naming the variable."""
+
+
+def _open(config: zenoh.Config) -> zenoh.Session:
+    """``zenoh.open``, with a bad :data:`RUNTIME_ENV` reported as a :class:`ConfigError` (zenoh
+    raises a ``PanicException``, which is no ``Exception``, and its threads stay unusable: the
+    process can only stop)."""
+    if not os.environ.get(RUNTIME_ENV, "x").strip():
+        del os.environ[RUNTIME_ENV]
+    try:
+        return zenoh.open(config)
+    except BaseException as err:
+        setting = os.environ.get(RUNTIME_ENV)
+        if type(err).__name__ != "PanicException" or setting is None:
+            raise
+        raise ConfigError(
+            f"{RUNTIME_ENV}={setting!r} is not a zenoh runtime setting (RON, e.g. "
+            f"'(rx: (handover: app))'; unset it for zenoh's defaults). zenoh says: {err}"
+        ) from None
+
 
 def base_config(path: str | None = None) -> zenoh.Config:
     """A zenoh configuration read from ``path``, else from ``$ZENOH_CONFIG``, else the default."""
@@ -164,7 +189,7 @@ def open_router(
         overrides=() if connect else (_NO_SCOUTING_WAIT,),
     )
     try:
-        session = zenoh.open(zenoh_config(cfg))
+        session = _open(zenoh_config(cfg))
     except zenoh.ZError as err:
         raise ConfigError(f"cannot open a router on {listen!r}: {err}") from err
     locators: list[str] = []
@@ -197,7 +222,7 @@ def open_client(
         mode="client", connect=(connect,), settings=settings or {}, config_file=config_file
     )
     try:
-        return zenoh.open(zenoh_config(cfg))
+        return _open(zenoh_config(cfg))
     except zenoh.ZError as err:
         tls = (
             "; over tls/ the endpoint's host must be one the router's certificate names "
