@@ -115,8 +115,8 @@ def _open(config: zenoh.Config) -> zenoh.Session:
     """``zenoh.open``, with a bad :data:`RUNTIME_ENV` reported as a :class:`ConfigError` (zenoh
     raises a ``PanicException``, which is no ``Exception``, and its threads stay unusable: the
     process can only stop)."""
-    if not os.environ.get(RUNTIME_ENV, "x").strip():
-        del os.environ[RUNTIME_ENV]
+    if RUNTIME_ENV in os.environ and not os.environ[RUNTIME_ENV].strip():
+        del os.environ[RUNTIME_ENV]  # empty: zenoh's defaults, as when unset
     try:
         return zenoh.open(config)
     except BaseException as err:

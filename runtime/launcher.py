@@ -553,7 +553,7 @@ def _frozen_heap() -> Iterator[None]:
     for the duration (``gc.freeze``; the fork server does the same before it forks the
     processes engine's nodes). A full pass over the threads engine's heap, about 140 000
     objects, held every thread for 60-77 ms, once or twice in a 30 pu JCSTR run (1500 rounds
-    of about 1 ms); frozen, the longest round of such a run fell to 12-17 ms."""
+    of about 1 ms); frozen, the longest round of such a run fell to 12-20 ms."""
     gc.freeze()
     try:
         yield
