@@ -331,7 +331,14 @@ def _launch_bus(
     run_info["tls"] = tls
     write_json(out / RUN_FILE, run_info)
     if on_start is not None:
-        on_start(out)
+        try:
+            on_start(out)
+        except BaseException:  # e.g. the dashboard's port taken: nothing of the run outlives it
+            watch.close()
+            router.close()
+            if server is not None:
+                server.abandon()
+            raise
     prog = _Progress(run_id, scenario, progress)
     subs = [
         watch.declare_subscriber(keys.full(run_id, keys.tick_log()), prog.on_log),

@@ -8,11 +8,13 @@ import threading
 import time
 
 import msgpack
+import pytest
 import yaml
 
 from agents.operator.behaviour import OperatorBehaviour
 from bus_schemas import keys
 from controllers.behaviour import ControllerBehaviour
+from core.errors import ConfigError
 from core.record import summarize
 from kernel.bus import open_client
 from kernel.clock import SYNC_ROUNDS, ClockRunner
@@ -174,6 +176,22 @@ def test_wsn_run_is_reproducible_and_its_stats_match_the_summary(tmp_path):
         assert 0 <= mine["lost"] - theirs["lost"] <= 1
         assert theirs["delay_mean"] == mine["delay_mean"]
     assert n_proposals == 3  # initial, r1 down, r2 down
+
+
+@pytest.mark.parametrize("engine", ["threads", "processes"])
+def test_an_on_start_that_fails_leaves_no_router_behind(tmp_path, engine):
+    """``launch(on_start=...)`` (``wncs run --dashboard`` starts its dashboard there): when it
+    raises, the run's router (and the processes engine's fork server) go with the error."""
+    seen = {}
+
+    def failing(out):
+        seen["endpoint"] = json.loads((out / "run.json").read_text())["endpoint"]
+        raise OSError("address already in use")
+
+    with pytest.raises(OSError, match="address already in use"):
+        launch(BENCHMARK, tmp_path / "run", engine=engine, on_start=failing, insecure=True)
+    with pytest.raises(ConfigError, match="no router answers"):
+        open_client(seen["endpoint"]).close()
 
 
 def test_a_node_failing_at_start_stops_the_run_and_leaves_no_thread(tmp_path, stand_in):
