@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import json
+import sys
 import threading
 import time
 
@@ -21,7 +22,7 @@ from kernel.clock import SYNC_ROUNDS, ClockRunner
 from runtime.direct import simulate
 from runtime.historian import HistorianNode
 from runtime.history import connect, messages_digest
-from runtime.launcher import launch
+from runtime.launcher import SWITCH_INTERVAL_S, launch
 from runtime.scenario import load_scenario
 from tests.conftest import BENCHMARK, SCENARIOS, wait_until, write_variant
 
@@ -43,24 +44,29 @@ def test_threads_engine_equals_direct_and_is_reproducible(tmp_path):
         assert a.summary["loops"][name]["overshoot_pct"] == loop["overshoot_pct"]
 
 
-def test_a_threads_run_keeps_the_heap_frozen_while_it_goes_and_thaws_it_after(
+def test_a_threads_run_tunes_the_interpreter_while_it_goes_and_restores_it_after(
     tmp_path, monkeypatch
 ):
-    """The launcher keeps its heap out of the collector's full passes during a threads run (a
-    full pass held every thread for 60-77 ms: runtime.launcher._frozen_heap), and nothing stays
-    frozen after it, whatever became garbage meanwhile."""
-    frozen_in_rounds = []
+    """During a threads run the launcher keeps its heap out of the collector's full passes (a
+    full pass held every thread for 60-77 ms: runtime.launcher._frozen_heap) and shortens the
+    interpreter's switch interval (runtime.launcher.SWITCH_INTERVAL_S); after it nothing stays
+    frozen, whatever became garbage meanwhile, and the caller's switch interval is back."""
+    seen = []
     on_tick = HistorianNode.on_tick
 
-    def counting(self, tick):
-        frozen_in_rounds.append(gc.get_freeze_count())
+    def noting(self, tick):
+        seen.append((gc.get_freeze_count(), sys.getswitchinterval()))
         on_tick(self, tick)
 
-    monkeypatch.setattr(HistorianNode, "on_tick", counting)
+    monkeypatch.setattr(HistorianNode, "on_tick", noting)
+    callers = sys.getswitchinterval()
+    assert callers != SWITCH_INTERVAL_S
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 0, res.error
-    assert frozen_in_rounds and min(frozen_in_rounds) > 10_000  # the imports at least
+    assert seen and min(frozen for frozen, _ in seen) > 10_000  # the imports at least
+    assert {interval for _, interval in seen} == {SWITCH_INTERVAL_S}
     assert gc.get_freeze_count() == 0
+    assert sys.getswitchinterval() == callers
 
 
 def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
