@@ -560,12 +560,16 @@ def _frozen_heap() -> Iterator[None]:
     for the duration (``gc.freeze``; the fork server does the same before it forks the
     processes engine's nodes). A full pass over the threads engine's heap, about 140 000
     objects, held every thread for 60-77 ms, once or twice in a 30 pu JCSTR run (1500 rounds
-    of about 1 ms); frozen, the longest round of such a run fell to 12-20 ms."""
+    of about 1 ms); frozen, the longest round of such a run fell to 12-20 ms. Process-wide, as
+    is :func:`_switch_interval`: a caller that froze objects of its own keeps them frozen, with
+    the run's; otherwise they are thawed after it, and what is garbage by then is collected."""
+    caller_froze = gc.get_freeze_count() > 0
     gc.freeze()
     try:
         yield
     finally:
-        gc.unfreeze()  # what is garbage by now may be collected again
+        if not caller_froze:
+            gc.unfreeze()
 
 
 SWITCH_INTERVAL_S = 0.002
