@@ -31,10 +31,12 @@ a round alone, in one thread, and multiplies by how often a run does it:
 Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
 of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover
 is the rounds' critical path: the tick's and the Dones' trips over the router and the threads
-waiting for the interpreter lock. So a second threads run is stamped (:func:`critical_path`):
-for each round with one node taking part, the tick's way out to the node's callback, the node's
-round, its ``Done``'s way back to the clock's callback and the clock's work to the next tick,
-set beside the skeleton's one way; and how much of the run its slowest rounds hold.
+waiting for the interpreter lock. So a threads run and a processes run are stamped
+(:func:`critical_path`, :class:`Stamps`; in the processes run each process stamps itself and
+dumps its stamps as its node ends): for each round with one node taking part, the tick's way
+out to the node's callback, the node's round, its ``Done``'s way back to the clock's callback
+and the clock's work to the next tick, set beside the skeleton's one way; and how much of the
+run its slowest rounds hold.
 
     .venv/bin/python bench/round_budget.py [SCENARIO]
 """
@@ -44,6 +46,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import os
 import queue
 import sqlite3
 import statistics
@@ -254,73 +257,154 @@ SEGMENTS = (
 )
 
 
-def critical_path(scenario_path: Path) -> tuple[dict[str, list[float]], list[float]]:
-    """Where the wall time of a threads run's rounds goes: stamps (``perf_counter``, one clock
-    for every thread) at each tick published, each node's tick callback entered and left, and
-    each ``Done`` callback of the clock entered. Returns, in microseconds, the four
-    :data:`SEGMENTS` of every round in which exactly one node took part (its tick to the next
-    tick; the rounds with more nodes overlap theirs), and every round's length."""
-    ticks: dict[int, float] = {}
-    nodes: dict[int, list[tuple[float, float]]] = {}
-    dones: dict[int, list[float]] = {}
-    local = threading.local()
-    publish_tick, on_tick, round_, on_done = (
-        ClockRunner._publish_tick,
-        BusNode._on_tick,
-        BusNode._round_,
-        ClockRunner._on_done,
-    )
+class Stamps:
+    """Critical-path stamps (``perf_counter``: ``CLOCK_MONOTONIC``, one clock for every thread
+    and process of the machine) at each tick published, each node's tick callback entered and
+    left, and each ``Done`` callback of the clock entered, by round."""
 
-    def stamped_publish_tick(self: ClockRunner, tick: Tick, to: frozenset[str]) -> None:
-        publish_tick(self, tick, to)
-        ticks[tick.round] = time.perf_counter()
+    def __init__(self) -> None:
+        self.ticks: dict[int, float] = {}
+        self.nodes: dict[int, list[tuple[float, float]]] = {}
+        self.dones: dict[int, list[float]] = {}
 
-    def stamped_on_tick(self: BusNode, sample: Any) -> None:
-        t0, local.round = time.perf_counter(), None
-        try:
-            on_tick(self, sample)
-        finally:
-            if local.round is not None:
-                nodes.setdefault(local.round, []).append((t0, time.perf_counter()))
+    def install(self, dump_to: Path | None = None) -> Callable[[], None]:
+        """Stamp this process's clock and nodes; return what takes the stamping off again.
+        With ``dump_to`` each clock's and node's ``run`` writes this process's stamps there as
+        it ends (a forked node ends with ``os._exit``: no ``atexit``)."""
+        local = threading.local()
+        publish_tick, on_tick, round_, on_done = (
+            ClockRunner._publish_tick,
+            BusNode._on_tick,
+            BusNode._round_,
+            ClockRunner._on_done,
+        )
 
-    def noted_round(self: BusNode, tick: Tick) -> None:
-        local.round = tick.round
-        round_(self, tick)
+        def stamped_publish_tick(runner: ClockRunner, tick: Tick, to: frozenset[str]) -> None:
+            publish_tick(runner, tick, to)
+            self.ticks[tick.round] = time.perf_counter()
 
-    def stamped_on_done(self: ClockRunner, sample: Any) -> None:
-        dones.setdefault(self._tick.round, []).append(time.perf_counter())
-        on_done(self, sample)
+        def stamped_on_tick(node: BusNode, sample: Any) -> None:
+            t0, local.round = time.perf_counter(), None
+            try:
+                on_tick(node, sample)
+            finally:
+                if local.round is not None:
+                    self.nodes.setdefault(local.round, []).append((t0, time.perf_counter()))
 
-    patches = {
-        (ClockRunner, "_publish_tick"): stamped_publish_tick,
-        (BusNode, "_on_tick"): stamped_on_tick,
-        (BusNode, "_round_"): noted_round,
-        (ClockRunner, "_on_done"): stamped_on_done,
-    }
-    originals = {where: getattr(*where) for where in patches}
-    for (cls, name), fn in patches.items():
-        setattr(cls, name, fn)
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            res = launch(scenario_path, Path(tmp) / "run", engine="threads")
-    finally:
-        for (cls, name), fn in originals.items():
+        def noted_round(node: BusNode, tick: Tick) -> None:
+            local.round = tick.round
+            round_(node, tick)
+
+        def stamped_on_done(runner: ClockRunner, sample: Any) -> None:
+            self.dones.setdefault(runner._tick.round, []).append(time.perf_counter())
+            on_done(runner, sample)
+
+        patches: dict[tuple[type, str], Callable[..., Any]] = {
+            (ClockRunner, "_publish_tick"): stamped_publish_tick,
+            (BusNode, "_on_tick"): stamped_on_tick,
+            (BusNode, "_round_"): noted_round,
+            (ClockRunner, "_on_done"): stamped_on_done,
+        }
+        if dump_to is not None:
+            for cls in (BusNode, ClockRunner):
+                patches[(cls, "run")] = self._dumping(cls.run, dump_to)  # type: ignore[attr-defined]
+        originals = {where: getattr(*where) for where in patches}
+        for (cls, name), fn in patches.items():
             setattr(cls, name, fn)
+
+        def restore() -> None:
+            for (cls, name), fn in originals.items():
+                setattr(cls, name, fn)
+
+        return restore
+
+    def _dumping(self, run: Callable[[Any], int], dump_to: Path) -> Callable[[Any], int]:
+        def dumping_run(obj: Any) -> int:
+            try:
+                return run(obj)
+            finally:
+                data = {"ticks": self.ticks, "nodes": self.nodes, "dones": self.dones}
+                (dump_to / f"{os.getpid()}.json").write_text(json.dumps(data))
+
+        return dumping_run
+
+    def merge(self, path: Path) -> None:
+        """Add the stamps another process dumped (:meth:`install`) to these."""
+        data = json.loads(path.read_text())
+        self.ticks.update({int(r): t for r, t in data["ticks"].items()})
+        for r, spans in data["nodes"].items():
+            self.nodes.setdefault(int(r), []).extend((a, b) for a, b in spans)
+        for r, ts in data["dones"].items():
+            self.dones.setdefault(int(r), []).extend(ts)
+
+    def segments(self) -> tuple[dict[str, list[float]], list[float]]:
+        """In microseconds, the four :data:`SEGMENTS` of every round in which exactly one node
+        took part (its tick to the next tick; the rounds with more nodes overlap theirs), and
+        every round's length."""
+        segments: dict[str, list[float]] = {s: [] for s in SEGMENTS}
+        lengths = []
+        ticks, nodes, dones = self.ticks, self.nodes, self.dones
+        for r in range(1, max(ticks)):  # round 0 is start-up
+            if r + 1 not in ticks:
+                continue
+            lengths.append((ticks[r + 1] - ticks[r]) * 1e6)
+            if len(nodes.get(r, ())) != 1 or len(dones.get(r, ())) != 1:
+                continue
+            (t_in, t_out), (t_done,) = nodes[r][0], dones[r]
+            stamps = (ticks[r], t_in, t_out, t_done, ticks[r + 1])
+            for what, (a, b) in zip(SEGMENTS, itertools.pairwise(stamps), strict=True):
+                segments[what].append((b - a) * 1e6)
+        return segments, lengths
+
+
+STAMPS_ENV = "WNCS_BENCH_STAMPS"
+SITECUSTOMIZE = f"""
+import os
+if os.environ.get({STAMPS_ENV!r}):
+    from pathlib import Path
+    from round_budget import Stamps
+    Stamps().install(dump_to=Path(os.environ[{STAMPS_ENV!r}]))
+"""
+"""Every process of a processes run imports it at its start (``PYTHONPATH``): the fork server
+installs the stamping before it forks the nodes."""
+
+
+def critical_path(
+    scenario_path: Path, engine: str = "threads"
+) -> tuple[dict[str, list[float]], list[float]]:
+    """Where the wall time of a run's rounds goes (:class:`Stamps`, :meth:`Stamps.segments`):
+    the threads engine stamped in this process, the processes engine in each of its processes
+    (a ``sitecustomize`` on their ``PYTHONPATH``)."""
+    stamps = Stamps()
+    with tempfile.TemporaryDirectory() as tmp:
+        if engine == "threads":
+            restore = stamps.install()
+            try:
+                res = launch(scenario_path, Path(tmp) / "run", engine="threads")
+            finally:
+                restore()
+        else:
+            site, dumps = Path(tmp) / "site", Path(tmp) / "stamps"
+            site.mkdir()
+            dumps.mkdir()
+            (site / "sitecustomize.py").write_text(SITECUSTOMIZE)
+            here = Path(__file__).resolve().parent
+            path = os.pathsep.join([str(site), str(here), str(here.parent)])
+            saved = {k: os.environ.get(k) for k in ("PYTHONPATH", STAMPS_ENV)}
+            os.environ.update({"PYTHONPATH": path, STAMPS_ENV: str(dumps)})
+            try:
+                res = launch(scenario_path, Path(tmp) / "run", engine=engine)
+            finally:
+                for k, v in saved.items():
+                    if v is None:
+                        os.environ.pop(k, None)
+                    else:
+                        os.environ[k] = v
+            for dump in dumps.glob("*.json"):
+                stamps.merge(dump)
     if res.code != 0:
         raise SystemExit(res.error)
-    segments: dict[str, list[float]] = {s: [] for s in SEGMENTS}
-    lengths = []
-    for r in range(1, max(ticks)):  # round 0 is start-up
-        if r + 1 not in ticks:
-            continue
-        lengths.append((ticks[r + 1] - ticks[r]) * 1e6)
-        if len(nodes.get(r, ())) != 1 or len(dones.get(r, ())) != 1:
-            continue
-        (t_in, t_out), (t_done,) = nodes[r][0], dones[r]
-        stamps = (ticks[r], t_in, t_out, t_done, ticks[r + 1])
-        for what, (a, b) in zip(SEGMENTS, itertools.pairwise(stamps), strict=True):
-            segments[what].append((b - a) * 1e6)
-    return segments, lengths
+    return stamps.segments()
 
 
 def main() -> None:
@@ -375,11 +459,17 @@ def main() -> None:
         f"work): {bare * 1e3:.0f} us, {bare / floor:.1f}x the round trip; the run's rounds "
         f"cost {wall_ms / bare:.1f}x their skeleton"
     )
-    segments, lengths = critical_path(args.scenario)
+    for engine in ("threads", "processes"):
+        _print_critical_path(engine, *critical_path(args.scenario, engine), bare)
+
+
+def _print_critical_path(
+    engine: str, segments: dict[str, list[float]], lengths: list[float], bare_ms: float
+) -> None:
     n_single = len(next(iter(segments.values())))
     mean_single = sum(statistics.mean(v) for v in segments.values())
     print(
-        f"\nthe critical path, from stamps in a second threads run: the {n_single} of "
+        f"\nthe critical path, from stamps in a {engine} run: the {n_single} of "
         f"{len(lengths)} rounds with one node taking part (mean {mean_single:.0f} us)"
     )
     print("| segment | median us | mean us | share of the mean |")
@@ -393,7 +483,7 @@ def main() -> None:
         f"every round: median {statistics.median(lengths):.0f} us, 90th percentile "
         f"{lengths[int(0.9 * len(lengths))]:.0f} us, longest {lengths[-1]:.0f} us; rounds over "
         f"2 ms: {len(slow)} holding {sum(slow) / sum(lengths):.0%} of the run; the skeleton's "
-        f"one way is {bare * 1e3 / 2:.0f} us"
+        f"one way (threads placement) is {bare_ms * 1e3 / 2:.0f} us"
     )
 
 
