@@ -56,6 +56,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 from engines import round_trip_ms, rounds_of
 
@@ -390,16 +391,8 @@ def critical_path(
             (site / "sitecustomize.py").write_text(SITECUSTOMIZE)
             here = Path(__file__).resolve().parent
             path = os.pathsep.join([str(site), str(here), str(here.parent)])
-            saved = {k: os.environ.get(k) for k in ("PYTHONPATH", STAMPS_ENV)}
-            os.environ.update({"PYTHONPATH": path, STAMPS_ENV: str(dumps)})
-            try:
+            with mock.patch.dict(os.environ, {"PYTHONPATH": path, STAMPS_ENV: str(dumps)}):
                 res = launch(scenario_path, Path(tmp) / "run", engine=engine)
-            finally:
-                for k, v in saved.items():
-                    if v is None:
-                        os.environ.pop(k, None)
-                    else:
-                        os.environ[k] = v
             for dump in dumps.glob("*.json"):
                 stamps.merge(dump)
     if res.code != 0:

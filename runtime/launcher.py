@@ -304,41 +304,29 @@ def _launch_bus(
             preexec_fn=die_with_parent,
             env=_node_environment(security),
         )
-    try:
+    with contextlib.ExitStack() as undo:  # what start-up opened, closed if start-up fails
+        if server is not None:
+            undo.callback(server.abandon)
         router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
             listen,
             security=security,
             zenoh_config=zenoh_config,
             refused_log=None if security is None else out / REFUSED_LOG,
         )
-    except BaseException:
-        if server is not None:
-            server.abandon()
-        raise
-    locators = router.locators
-    endpoint = pick_endpoint(locators, listen, hosts)
-    try:  # the launcher's own session: it shows the run's progress
-        watch = open_client(
+        undo.callback(router.close)
+        locators = router.locators
+        endpoint = pick_endpoint(locators, listen, hosts)
+        watch = open_client(  # the launcher's own session: it shows the run's progress
             endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
         )
-    except BaseException:
-        router.close()
-        if server is not None:
-            server.abandon()
-        raise
-    run_info["endpoint"] = endpoint
-    run_info["secure"] = security is not None
-    run_info["tls"] = tls
-    write_json(out / RUN_FILE, run_info)
-    if on_start is not None:
-        try:
-            on_start(out)
-        except BaseException:  # e.g. the dashboard's port taken: nothing of the run outlives it
-            watch.close()
-            router.close()
-            if server is not None:
-                server.abandon()
-            raise
+        undo.callback(watch.close)
+        run_info["endpoint"] = endpoint
+        run_info["secure"] = security is not None
+        run_info["tls"] = tls
+        write_json(out / RUN_FILE, run_info)
+        if on_start is not None:
+            on_start(out)  # e.g. the dashboard, whose port may be taken
+        undo.pop_all()  # started: the run's own ``finally`` below closes them
     prog = _Progress(run_id, scenario, progress)
     subs = [
         watch.declare_subscriber(keys.full(run_id, keys.tick_log()), prog.on_log),
