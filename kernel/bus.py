@@ -36,6 +36,7 @@ __all__ = [
     "init_zenoh_log",
     "zenoh_log_started",
     "base_config",
+    "SHARED_MEMORY",
     "CONFIG_ENV",
     "CREDENTIALS_ENV",
     "RUNTIME_ENV",
@@ -129,9 +130,13 @@ def _open(config: zenoh.Config) -> zenoh.Session:
         ) from None
 
 
+def _config_path(path: str | None) -> str | None:
+    return path or os.environ.get(CONFIG_ENV) or None
+
+
 def base_config(path: str | None = None) -> zenoh.Config:
     """A zenoh configuration read from ``path``, else from ``$ZENOH_CONFIG``, else the default."""
-    path = path or os.environ.get(CONFIG_ENV) or None
+    path = _config_path(path)
     if path is None:
         return zenoh.Config()
     if not Path(path).is_file():
@@ -142,9 +147,27 @@ def base_config(path: str | None = None) -> zenoh.Config:
         raise ConfigError(f"zenoh configuration {path}: {err}") from err
 
 
+SHARED_MEMORY = "transport/shared_memory"
+"""zenoh's shared-memory transport, which every session of a run turns off unless its zenoh
+configuration file names it. zenoh's default moves a message of 3 KB or more (the clock's logs
+of 64 ticks, 4-10 KB) through a shared-memory segment when both ends are on one host; the first
+such message of a session stalls inside its ``put`` while zenoh creates the 1.3 MB segment,
+locks it in memory and starts two watchdog threads: 5.5-8.3 ms in the clock's third log, inside
+the ``Done`` callback that ticks the next round (``docs/benchmarks.md``). A run's messages are
+small and cross loopback TCP in microseconds, so the segment saves nothing it could use."""
+
+
+def _names_shared_memory(path: str | None) -> bool:
+    """Whether the zenoh configuration file at ``path`` mentions the shared-memory transport
+    (then its settings are the file's, zenoh's defaults included)."""
+    return path is not None and "shared_memory" in Path(path).read_text(errors="replace")
+
+
 def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     """Build the ``zenoh.Config`` of ``cfg``."""
     conf = base_config(cfg.config_file)
+    if not _names_shared_memory(_config_path(cfg.config_file)):
+        conf.insert_json5(f"{SHARED_MEMORY}/enabled", "false")
     conf.insert_json5("mode", json.dumps(cfg.mode))
     if cfg.listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
