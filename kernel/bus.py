@@ -150,11 +150,11 @@ def base_config(path: str | None = None) -> zenoh.Config:
 SHARED_MEMORY = "transport/shared_memory"
 """zenoh's shared-memory transport, which every session of a run turns off unless its zenoh
 configuration file names it. zenoh's default moves a message of 3 KB or more (the clock's logs
-of 64 ticks, 4-10 KB) through a shared-memory segment when both ends are on one host; the first
-such message of a session stalls inside its ``put`` while zenoh creates the 1.3 MB segment,
+of 64 ticks, 4-10 KB) through a shared-memory segment when both ends are on one host, and a
+session's second such message stalls inside its ``put`` while zenoh creates the 1.3 MB segment,
 locks it in memory and starts two watchdog threads: 5.5-8.3 ms in the clock's third log, inside
-the ``Done`` callback that ticks the next round (``docs/benchmarks.md``). A run's messages are
-small and cross loopback TCP in microseconds, so the segment saves nothing it could use."""
+the ``Done`` callback that ticks the next round (``docs/benchmarks.md``). Without it the same
+logs take 0.1-0.9 ms at most over loopback TCP, so the segment saves a run nothing."""
 
 
 def _names_shared_memory(path: str | None) -> bool:
