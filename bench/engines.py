@@ -21,13 +21,19 @@ With ``--against REV`` it first times the direct engine here and at git revision
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
 ratio: the before-and-after figure of a change to the engine.
 
-    .venv/bin/python bench/engines.py [--repeat N] [--against REV]
+With ``--pinned`` it also launches each bus engine with its processes pinned to CPUs
+(``wncs run --affinity``, :mod:`runtime.affinity`): the threads engine's on the first CPU, the
+processes engine's on the first but the historian on the last; the floors of those launches are
+measured pinned the same way.
+
+    .venv/bin/python bench/engines.py [--repeat N] [--against REV] [--pinned]
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sqlite3
 import statistics
 import subprocess
@@ -41,6 +47,7 @@ from against import Comparison
 
 from kernel.bus import Session, open_client, open_router
 from kernel.router_process import RouterProcess
+from runtime.affinity import ANY, cpus_of, pinned_here
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
@@ -51,6 +58,7 @@ SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.
 DIRECT_MS = """
 import json, time
 from kernel.bus import open_client, open_router
+from runtime.affinity import ANY, cpus_of, pinned_here
 from runtime.direct import simulate
 from runtime.scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
@@ -157,6 +165,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--against", metavar="REV", help="also time the direct engine at REV")
+    parser.add_argument(
+        "--pinned",
+        action="store_true",
+        help="also launch each bus engine pinned (runtime.affinity): threads with '*=' the "
+        "first CPU, processes with '*=' the first and historian= the last",
+    )
     args = parser.parse_args()
     if args.against:
         against(args.against, rounds=5)
@@ -175,26 +189,45 @@ def main() -> None:
 
     rows = {}
     rounds: dict[str, int] = {}
-    # per engine: (its run's ms per round, its topology's round trip, the in-process one)
-    launches: dict[str, list[tuple[float, float, float]]] = {"threads": [], "processes": []}
+    # per launch kind: (its run's ms per round, its topology's round trip, the in-process one)
+    launches: dict[str, list[tuple[float, float, float]]] = {}
+    kinds: list[tuple[str, str, dict[str, frozenset[int]]]] = [
+        (engine, engine, {}) for engine in ("direct", "threads", "processes")
+    ]
+    if args.pinned:
+        cpus = sorted(os.sched_getaffinity(0))
+        first, last = frozenset(cpus[:1]), frozenset(cpus[-1:])
+        kinds += [
+            (f"threads --affinity '*={cpus[0]}'", "threads", {"*": first}),
+            (
+                f"processes --affinity '*={cpus[0]}' --affinity historian={cpus[-1]}",
+                "processes",
+                {"*": first, "historian": last},
+            ),
+        ]
     with tempfile.TemporaryDirectory() as tmp:
-        for engine in ("direct", "threads", "processes"):
+        for kind, (name, engine, affinity) in enumerate(kinds):
             walls, runs, starts = [], [], []
             for i in range(args.repeat):
-                if engine != "direct":  # the floors of this very launch, just before it
-                    floor = round_trip_ms(200, topology=engine)
-                    floor_here = round_trip_ms(200)
-                res = launch(SCENARIO, Path(tmp) / f"{engine}{i}", engine=engine)
+                if engine != "direct":  # the floors of this very launch, just before it, with
+                    # the router and the clients pinned as the run's '*' (they inherit it)
+                    with pinned_here(cpus_of(affinity, ANY)):
+                        floor = round_trip_ms(200, topology=engine)
+                        floor_here = round_trip_ms(200)
+                out = Path(tmp) / f"{kind}-{i}"
+                res = launch(SCENARIO, out, engine=engine, affinity=affinity)
                 if res.code != 0:
-                    raise SystemExit(f"{engine}: {res.error}")
+                    raise SystemExit(f"{name}: {res.error}")
                 s = res.summary
                 walls.append(s["wall_s"])
                 runs.append(s["phases_s"].get("run", s["wall_s"]))
                 starts.append(s["phases_s"].get("startup", 0.0))
                 if engine != "direct":
-                    rounds[engine] = rounds_of(Path(tmp) / f"{engine}{i}")
-                    launches[engine].append((runs[-1] / rounds[engine] * 1e3, floor, floor_here))
-            rows[engine] = (
+                    rounds[name] = rounds_of(out)
+                    launches.setdefault(name, []).append(
+                        (runs[-1] / rounds[name] * 1e3, floor, floor_here)
+                    )
+            rows[name] = (
                 statistics.median(walls),
                 statistics.median(runs),
                 statistics.median(starts),

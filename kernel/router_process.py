@@ -100,6 +100,11 @@ class RouterProcess:
             )
         self.locators: list[str] = list(first["locators"])
 
+    @property
+    def pid(self) -> int:
+        """The router process's id."""
+        return self._proc.pid
+
     def _said(self, line: str | None) -> None:
         """A line of the child's standard output: its own word (tagged), or zenoh's log
         lines that ``RUST_LOG`` asked for, passed on to this process's output."""

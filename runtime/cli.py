@@ -44,6 +44,7 @@ from core.errors import ConfigError, SchemaError, WncsError, exit_code
 from dashboard import command as dashboard_command
 from kernel.bus import CONFIG_ENV, init_zenoh_log
 from kernel.security import client_settings, read_credential
+from runtime.affinity import parse_affinity
 from runtime.analysis import analyze, parse_delays
 from runtime.artefacts import REFUSED_LOG, RUN_FILE
 from runtime.export import export_run
@@ -264,6 +265,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="FILE",
         help="zenoh configuration file the router starts from (default: $ZENOH_CONFIG)",
+    )
+    run.add_argument(
+        "--affinity",
+        action="append",
+        default=[],
+        metavar="NAME=CPUS",
+        help="pin a process of the run to CPUs (repeatable): NAME a node, clock, historian, "
+        "router, or '*' for the others; CPUS as taskset -c takes them; the threads engine "
+        "takes '*' and router only. E.g. --affinity '*=0' --affinity historian=1",
     )
     run.add_argument("--quiet", action="store_true", help="print only errors")
     run.add_argument(
@@ -601,6 +611,7 @@ def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> i
         insecure=args.insecure,
         zenoh_config=args.zenoh_config,
         tls=args.tls,
+        affinity=parse_affinity(args.affinity),
     )
     if result.code == INTERRUPTED:
         where = f"; partial results in {args.out}" if result.summary else ""

@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from core.errors import ConfigError, SchemaError, WncsError, exit_code
 from kernel.bus import open_client
 from kernel.lifetime import die_with_parent
+from runtime.affinity import cpus_of, parse_affinity, pin
 from runtime.nodes import bus_node, check_node, clock_runner
 from runtime.scenario import Scenario, load_scenario
 from runtime.security import use_node_credentials
@@ -84,6 +85,9 @@ def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int)
     """In a forked child: become node ``name``'s process (own group, its log) and run it."""
     os.setsid()
     die_with_parent(parent)
+    cpus = cpus_of(parse_affinity(args.affinity), name)
+    if cpus is not None:
+        pin(os.getpid(), cpus)
     use_node_credentials(name)  # a secure run: this node's, as wncs node finds them
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGCHLD):
         signal.signal(sig, signal.SIG_DFL)
@@ -93,6 +97,8 @@ def _child(scenario: Scenario, name: str, args: argparse.Namespace, parent: int)
     os.close(fd)
     sys.stdin.close()
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, force=True)
+    if cpus is not None:
+        logging.getLogger("wncs").info("%s pinned to CPU(s) %s", name, sorted(cpus))
     try:
         return run_node(
             scenario,
@@ -127,6 +133,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--realtime", type=float, default=None, help="the clock's seconds per unit")
     p.add_argument("--seed", type=int, default=None, help="the run's seed")
     p.add_argument("--set", action="append", default=[], help="a --set override (repeatable)")
+    p.add_argument(
+        "--affinity",
+        action="append",
+        default=[],
+        metavar="NAME=CPUS",
+        help="the CPUs of a node's process, '*' for the others (runtime.affinity; repeatable)",
+    )
     return p
 
 

@@ -22,7 +22,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -36,6 +36,7 @@ from kernel.bus import DEFAULT_LISTEN, is_put, open_client
 from kernel.clock import ClockRunner
 from kernel.lifetime import die_with_parent
 from kernel.router_process import RouterProcess
+from runtime.affinity import ANY, ROUTER, check_affinity, cpus_of, pin, pinned_here
 from runtime.artefacts import REFUSED_LOG, RUN_FILE, SCENARIO_FILE, write_json
 from runtime.direct import simulate
 from runtime.forked import ForkServer
@@ -174,6 +175,7 @@ def launch(
     insecure: bool = False,
     zenoh_config: str | None = None,
     tls: bool = False,
+    affinity: Mapping[str, frozenset[int]] | None = None,
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
@@ -188,6 +190,8 @@ def launch(
     configuration file the router starts from (else ``$ZENOH_CONFIG``). With ``tls`` every
     session of the run goes over mutual TLS (:mod:`kernel.tls`; ``listen`` defaults to
     ``tls/127.0.0.1:0``); ``tls`` with ``insecure`` is refused (``ConfigError``).
+    ``affinity`` pins the run's processes to CPUs (:mod:`runtime.affinity`, ``--affinity``);
+    one it cannot apply is refused before anything starts.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -200,6 +204,8 @@ def launch(
     scenario = load_scenario(scenario_path, overrides=overrides)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
+    affinity = dict(affinity or {})
+    check_affinity(affinity, ["clock", *scenario.participants()], engine)
     out = _prepare_out(Path(out), force)
     (out / SCENARIO_FILE).write_text(
         yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
@@ -214,6 +220,8 @@ def launch(
         "endpoint": None,
         "nodes": {},
     }
+    if affinity:
+        run_info["affinity"] = {name: sorted(cpus) for name, cpus in affinity.items()}
     wall0 = time.perf_counter()
     if engine == "direct":
         write_json(out / RUN_FILE, run_info)
@@ -238,6 +246,7 @@ def launch(
         insecure=insecure,
         zenoh_config=zenoh_config,
         tls=tls,
+        affinity=affinity,
     )
 
 
@@ -277,6 +286,7 @@ def _launch_bus(
     insecure: bool = False,
     zenoh_config: str | None = None,
     tls: bool = False,
+    affinity: Mapping[str, frozenset[int]],
 ) -> RunResult:
     run_id = run_info["run_id"]
     listen = listen or DEFAULT_LISTEN
@@ -300,7 +310,12 @@ def _launch_bus(
             connect=None,
             run_id=run_id,
             logs=out / "logs",
-            args=[*options["historian"], *options["clock"], *common_args],
+            args=[
+                *options["historian"],
+                *options["clock"],
+                *common_args,
+                *(f"--affinity={n}={','.join(map(str, sorted(c)))}" for n, c in affinity.items()),
+            ],
             preexec_fn=die_with_parent,
             env=_node_environment(security),
         )
@@ -314,6 +329,8 @@ def _launch_bus(
             refused_log=None if security is None else out / REFUSED_LOG,
         )
         undo.callback(router.close)
+        if (cpus := cpus_of(affinity, ROUTER)) is not None:
+            pin(router.pid, cpus)
         locators = router.locators
         endpoint = pick_endpoint(locators, listen, hosts)
         watch = open_client(  # the launcher's own session: it shows the run's progress
@@ -341,17 +358,18 @@ def _launch_bus(
         if server is not None:
             code, error, t_started = _run_processes(server, out, run_info, names, endpoint, prog)
         else:
-            code, error, t_started = _run_threads(
-                scenario,
-                out,
-                run_id,
-                names,
-                endpoint,
-                realtime,
-                engine,
-                prog,
-                security,
-            )
+            with pinned_here(cpus_of(affinity, ANY)):
+                code, error, t_started = _run_threads(
+                    scenario,
+                    out,
+                    run_id,
+                    names,
+                    endpoint,
+                    realtime,
+                    engine,
+                    prog,
+                    security,
+                )
     finally:
         if server is not None:
             server.abandon()  # nothing if it forked (its input is closed then); else it goes
