@@ -11,7 +11,8 @@ about 8 % faster in two alternated comparisons, slower in one run of ``bench/eng
 run whose nodes work in parallel (many loops) loses by it: nothing is pinned unless asked.
 
 ``NAME`` is a node of the scenario, ``clock``, ``historian`` or ``router`` (each a process of
-its own in the processes engine), or ``*`` for every process not named. The threads engine
+its own in the processes engine), or ``*`` for every one of those not named (the launcher's own
+process, which only shows the progress, and a dashboard's are left alone). The threads engine
 runs the clock and every node in the launcher's process: it takes ``*`` (that process, for the
 run) and ``router`` only. ``CPUS`` is a list of CPU numbers and ranges, as ``taskset -c`` takes
 them (``0``, ``0,2``, ``0-3``), each one this process may use.
