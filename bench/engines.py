@@ -21,12 +21,12 @@ With ``--against REV`` it first times the direct engine here and at git revision
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their
 ratio: the before-and-after figure of a change to the engine.
 
-With ``--pinned`` it also launches each bus engine with its processes pinned to CPUs
-(``wncs run --affinity``, :mod:`runtime.affinity`): the threads engine's on the first CPU, the
-processes engine's on the first but the historian on the last; the floors of those launches are
-measured pinned the same way.
+The threads engine's process and router run on one CPU by default (:mod:`runtime.affinity`), and
+its floors are measured pinned the same way. With ``--placements`` it also launches each bus
+engine placed the other way (``wncs run --affinity``): the threads engine spread over every CPU,
+the processes engine on the first CPU but the historian on the last (floors pinned likewise).
 
-    .venv/bin/python bench/engines.py [--repeat N] [--against REV] [--pinned]
+    .venv/bin/python bench/engines.py [--repeat N] [--against REV] [--placements]
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from against import Comparison
 
 from kernel.bus import Session, open_client, open_router
 from kernel.router_process import RouterProcess
-from runtime.affinity import ANY, cpus_of, pinned_here
+from runtime.affinity import ANY, cpus_of, pinned_here, with_default
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scenario import load_scenario
@@ -58,7 +58,7 @@ SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.
 DIRECT_MS = """
 import json, time
 from kernel.bus import open_client, open_router
-from runtime.affinity import ANY, cpus_of, pinned_here
+from runtime.affinity import ANY, cpus_of, pinned_here, with_default
 from runtime.direct import simulate
 from runtime.scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
@@ -166,10 +166,10 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--against", metavar="REV", help="also time the direct engine at REV")
     parser.add_argument(
-        "--pinned",
+        "--placements",
         action="store_true",
-        help="also launch each bus engine pinned (runtime.affinity): threads with '*=' the "
-        "first CPU, processes with '*=' the first and historian= the last",
+        help="also launch each bus engine placed the other way (runtime.affinity): threads "
+        "spread over every CPU, processes with '*=' the first and historian= the last",
     )
     args = parser.parse_args()
     if args.against:
@@ -194,11 +194,12 @@ def main() -> None:
     kinds: list[tuple[str, str, dict[str, frozenset[int]]]] = [
         (engine, engine, {}) for engine in ("direct", "threads", "processes")
     ]
-    if args.pinned:
+    if args.placements:
         cpus = sorted(os.sched_getaffinity(0))
         first, last = frozenset(cpus[:1]), frozenset(cpus[-1:])
+        every = ",".join(map(str, cpus))
         kinds += [
-            (f"threads --affinity '*={cpus[0]}'", "threads", {"*": first}),
+            (f"threads --affinity '*={every}'", "threads", {"*": frozenset(cpus)}),
             (
                 f"processes --affinity '*={cpus[0]}' --affinity historian={cpus[-1]}",
                 "processes",
@@ -211,7 +212,7 @@ def main() -> None:
             for i in range(args.repeat):
                 if engine != "direct":  # the floors of this very launch, just before it, with
                     # the router and the clients pinned as the run's '*' (they inherit it)
-                    with pinned_here(cpus_of(affinity, ANY)):
+                    with pinned_here(cpus_of(with_default(affinity, engine), ANY)):
                         floor = round_trip_ms(200, topology=engine)
                         floor_here = round_trip_ms(200)
                 out = Path(tmp) / f"{kind}-{i}"

@@ -7,8 +7,10 @@ a chain kept on one CPU can be faster than one spread over two, while the work o
 (the historian's recording) is better on the other. Measured on the 2-CPU machine of
 ``docs/benchmarks.md``: the benchmark's rounds 15-34 % faster on the threads engine with
 ``--affinity '*=0'``; on the processes engine with ``--affinity '*=0' --affinity historian=1``
-about 8 % faster in two alternated comparisons, slower in one run of ``bench/engines.py``. A
-run whose nodes work in parallel (many loops) loses by it: nothing is pinned unless asked.
+about 8 % faster in two alternated comparisons, slower in one run of ``bench/engines.py``, and
+no faster at 50 loops, where its processes work in parallel (all on one CPU: slower). So the
+threads engine's process and its router run on one CPU unless told otherwise
+(:func:`with_default`), and the processes engine's processes are pinned only when asked.
 
 ``NAME`` is a node of the scenario, ``clock``, ``historian`` or ``router`` (each a process of
 its own in the processes engine), or ``*`` for every one of those not named (the launcher's own
@@ -26,7 +28,16 @@ from collections.abc import Collection, Iterator, Mapping, Sequence
 
 from core.errors import ConfigError
 
-__all__ = ["ANY", "ROUTER", "parse_affinity", "check_affinity", "cpus_of", "pin", "pinned_here"]
+__all__ = [
+    "ANY",
+    "ROUTER",
+    "parse_affinity",
+    "check_affinity",
+    "cpus_of",
+    "with_default",
+    "pin",
+    "pinned_here",
+]
 
 ANY = "*"
 ROUTER = "router"
@@ -98,6 +109,16 @@ def check_affinity(affinity: Affinity, names: Collection[str], engine: str) -> N
 def cpus_of(affinity: Affinity, name: str) -> frozenset[int] | None:
     """The CPUs of process ``name``: its own entry, else ``*``'s, else ``None`` (any)."""
     return affinity.get(name, affinity.get(ANY))
+
+
+def with_default(affinity: Affinity, engine: str) -> dict[str, frozenset[int]]:
+    """``affinity`` with the engine's default: the threads engine's process and its router on
+    one CPU, the lowest this process may use, unless ``*`` says otherwise (``'*=0-1'`` spreads
+    them again). Its nodes share one interpreter lock, so a second CPU buys them little but the
+    lock's hand-overs and wake-ups across CPUs (``docs/benchmarks.md``)."""
+    if engine != "threads" or ANY in affinity:
+        return dict(affinity)
+    return {**affinity, ANY: frozenset({min(os.sched_getaffinity(0))})}
 
 
 def pin(pid: int, cpus: Collection[int]) -> None:

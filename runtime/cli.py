@@ -273,7 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME=CPUS",
         help="pin a process of the run to CPUs (repeatable): NAME a node, clock, historian, "
         "router, or '*' for the others; CPUS as taskset -c takes them; the threads engine "
-        "takes '*' and router only. E.g. --affinity '*=0' --affinity historian=1",
+        "takes '*' and router only, and runs on one CPU unless '*' says otherwise. E.g. "
+        "--affinity '*=0' --affinity historian=1",
     )
     run.add_argument("--quiet", action="store_true", help="print only errors")
     run.add_argument(

@@ -36,7 +36,15 @@ from kernel.bus import DEFAULT_LISTEN, is_put, open_client
 from kernel.clock import ClockRunner
 from kernel.lifetime import die_with_parent
 from kernel.router_process import RouterProcess
-from runtime.affinity import ANY, ROUTER, check_affinity, cpus_of, pin, pinned_here
+from runtime.affinity import (
+    ANY,
+    ROUTER,
+    check_affinity,
+    cpus_of,
+    pin,
+    pinned_here,
+    with_default,
+)
 from runtime.artefacts import REFUSED_LOG, RUN_FILE, SCENARIO_FILE, write_json
 from runtime.direct import simulate
 from runtime.forked import ForkServer
@@ -191,7 +199,9 @@ def launch(
     session of the run goes over mutual TLS (:mod:`kernel.tls`; ``listen`` defaults to
     ``tls/127.0.0.1:0``); ``tls`` with ``insecure`` is refused (``ConfigError``).
     ``affinity`` pins the run's processes to CPUs (:mod:`runtime.affinity`, ``--affinity``);
-    one it cannot apply is refused before anything starts.
+    one it cannot apply is refused before anything starts. The threads engine's process and
+    its router run on one CPU unless ``affinity`` gives ``*`` (:func:`~runtime.affinity.
+    with_default`).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -206,6 +216,7 @@ def launch(
         scenario = scenario.model_copy(update={"seed": seed})
     affinity = dict(affinity or {})
     check_affinity(affinity, ["clock", *scenario.participants()], engine)
+    affinity = with_default(affinity, engine)
     out = _prepare_out(Path(out), force)
     (out / SCENARIO_FILE).write_text(
         yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)

@@ -1,11 +1,15 @@
 """``wncs run --affinity`` pins a run's real processes to CPUs (runtime.affinity): each forked
 node and the router on the processes engine, the launcher's own process for the rounds of the
-threads engine (then its CPUs back); the history is the unpinned run's, bit for bit."""
+threads engine (then its CPUs back) and its router, by default on one CPU; the history is the
+unpinned run's, bit for bit."""
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
+
+import pytest
 
 from kernel.node import BusNode
 from runtime.history import messages_digest
@@ -61,8 +65,16 @@ def test_the_processes_engine_pins_each_node_and_the_router(tmp_path):
     )
 
 
-def test_the_threads_engine_pins_its_process_for_the_rounds_and_gives_its_cpus_back(
-    tmp_path, monkeypatch
+@pytest.mark.parametrize(
+    ("affinity", "want"),
+    [
+        (None, FIRST),  # the default: one CPU, the lowest this process may use
+        ({"*": LAST}, LAST),
+        ({"*": frozenset(USABLE)}, frozenset(USABLE)),  # spread again
+    ],
+)
+def test_the_threads_engine_pins_its_process_and_router_for_the_rounds_then_gives_them_back(
+    tmp_path, monkeypatch, affinity, want
 ):
     before = os.sched_getaffinity(0)
     seen: set[frozenset[int]] = set()
@@ -73,8 +85,19 @@ def test_the_threads_engine_pins_its_process_for_the_rounds_and_gives_its_cpus_b
         return round_(node, tick)
 
     monkeypatch.setattr(BusNode, "_round_", noting)
-    res = launch(BENCHMARK, tmp_path / "run", engine="threads", affinity={"*": FIRST})
+    router_cpus: list[set[frozenset[int]]] = []
+    res = launch(
+        BENCHMARK,
+        tmp_path / "run",
+        engine="threads",
+        affinity=affinity,
+        on_start=lambda out: router_cpus.append(_cpus_of(_router_pid())),
+    )
     assert res.code == 0, res.error
-    assert seen == {FIRST}
+    assert seen == {want}
+    assert router_cpus == [{want}]
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["affinity"] == {
+        "*": sorted(want)
+    }
     assert os.sched_getaffinity(0) == before
     assert _cpus_of(os.getpid()) == {frozenset(before)}
