@@ -115,8 +115,9 @@ def with_default(affinity: Affinity, engine: str) -> dict[str, frozenset[int]]:
     """``affinity`` with the engine's default: the threads engine's process and its router on
     one CPU, the lowest this process may use, unless ``*`` says otherwise (``'*=0-1'`` spreads
     them again). Its nodes share one interpreter lock, so a second CPU buys them little but the
-    lock's hand-overs and wake-ups across CPUs (``docs/benchmarks.md``)."""
-    if engine != "threads" or ANY in affinity:
+    lock's hand-overs and wake-ups across CPUs (``docs/benchmarks.md``). Where processes cannot
+    be pinned (not Linux), nothing is."""
+    if engine != "threads" or ANY in affinity or not hasattr(os, "sched_getaffinity"):
         return dict(affinity)
     return {**affinity, ANY: frozenset({min(os.sched_getaffinity(0))})}
 
