@@ -58,7 +58,6 @@ SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.
 DIRECT_MS = """
 import json, time
 from kernel.bus import open_client, open_router
-from runtime.affinity import ANY, cpus_of, pinned_here, with_default
 from runtime.direct import simulate
 from runtime.scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")

@@ -165,8 +165,9 @@ def _names_shared_memory(path: str | None) -> bool:
 
 def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     """Build the ``zenoh.Config`` of ``cfg``."""
-    conf = base_config(cfg.config_file)
-    if not _names_shared_memory(_config_path(cfg.config_file)):
+    path = _config_path(cfg.config_file)
+    conf = base_config(path)
+    if not _names_shared_memory(path):
         conf.insert_json5(f"{SHARED_MEMORY}/enabled", "false")
     conf.insert_json5("mode", json.dumps(cfg.mode))
     if cfg.listen:

@@ -32,6 +32,7 @@ __all__ = [
     "ANY",
     "ROUTER",
     "parse_affinity",
+    "affinity_args",
     "check_affinity",
     "cpus_of",
     "with_default",
@@ -75,6 +76,13 @@ def parse_affinity(items: Sequence[str]) -> dict[str, frozenset[int]]:
             raise ConfigError(f"--affinity {item!r}: {name!r} is given twice")
         affinity[name] = _cpus(cpus, item)
     return affinity
+
+
+def affinity_args(affinity: Affinity) -> list[str]:
+    """``affinity`` as the ``--affinity NAME=CPUS`` arguments :func:`parse_affinity` reads."""
+    return [
+        f"--affinity={name}={','.join(map(str, sorted(cpus)))}" for name, cpus in affinity.items()
+    ]
 
 
 def check_affinity(affinity: Affinity, names: Collection[str], engine: str) -> None:

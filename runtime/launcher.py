@@ -39,6 +39,7 @@ from kernel.router_process import RouterProcess
 from runtime.affinity import (
     ANY,
     ROUTER,
+    affinity_args,
     check_affinity,
     cpus_of,
     pin,
@@ -214,9 +215,8 @@ def launch(
     scenario = load_scenario(scenario_path, overrides=overrides)
     if seed is not None:
         scenario = scenario.model_copy(update={"seed": seed})
-    affinity = dict(affinity or {})
-    check_affinity(affinity, ["clock", *scenario.participants()], engine)
-    affinity = with_default(affinity, engine)
+    check_affinity(affinity or {}, ["clock", *scenario.participants()], engine)
+    affinity = with_default(affinity or {}, engine)
     out = _prepare_out(Path(out), force)
     (out / SCENARIO_FILE).write_text(
         yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
@@ -325,7 +325,7 @@ def _launch_bus(
                 *options["historian"],
                 *options["clock"],
                 *common_args,
-                *(f"--affinity={n}={','.join(map(str, sorted(c)))}" for n, c in affinity.items()),
+                *affinity_args(affinity),
             ],
             preexec_fn=die_with_parent,
             env=_node_environment(security),
