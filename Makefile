@@ -37,6 +37,7 @@ test-fast: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check --exclude '*.md' .
 	$(BIN)/mypy --strict bus_schemas core kernel
 
 # The documentation site into site/ (docs/hooks.py generates the reference pages from the code);

@@ -80,8 +80,9 @@ def run_once(out: Path, dashboard: bool) -> tuple[tuple[float, float], dict[str,
         return _walls(out), seen
     port = _free_port()
     log = out.with_suffix(".log")
-    proc = subprocess.Popen([*cmd, "--dashboard", str(port)], stdout=log.open("w"),
-                            stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [*cmd, "--dashboard", str(port)], stdout=log.open("w"), stderr=subprocess.STDOUT
+    )
     page = threading.Thread(target=_page, args=(f"ws://127.0.0.1:{port}/ws", seen))
     page.start()
     while proc.poll() is None and "shows the finished run" not in log.read_text():
@@ -104,12 +105,16 @@ def overhead(repeat: int) -> None:
     print(f"demo run, processes engine, median of {repeat} (wall s / run phase s):")
     for name, runs in (("without dashboard", without), ("with dashboard and page", with_)):
         listed = ", ".join(f"{w:.2f}/{r:.2f}" for w, r in runs)
-        print(f"  {name:<24} {statistics.median(w for w, _ in runs):7.2f} / "
-              f"{statistics.median(r for _, r in runs):5.2f}   ({listed})")
+        print(
+            f"  {name:<24} {statistics.median(w for w, _ in runs):7.2f} / "
+            f"{statistics.median(r for _, r in runs):5.2f}   ({listed})"
+        )
     wall = statistics.median(w for w, _ in with_) / statistics.median(w for w, _ in without)
     run = statistics.median(r for _, r in with_) / statistics.median(r for _, r in without)
-    print(f"  ratio with/without: wall {wall:.3f}, run phase {run:.3f} (target <= 1.10); the "
-          f"page got {seen.get('messages', 0)} messages, {seen.get('records', 0)} records")
+    print(
+        f"  ratio with/without: wall {wall:.3f}, run phase {run:.3f} (target <= 1.10); the "
+        f"page got {seen.get('messages', 0)} messages, {seen.get('records', 0)} records"
+    )
 
 
 def throughput(samples: int) -> None:
@@ -136,9 +141,11 @@ def throughput(samples: int) -> None:
         dash = Dashboard(out)  # reads the whole history, as for a replay
         dt = time.perf_counter() - t0
     assert dash.view.rows == len(rows), (dash.view.rows, len(rows))
-    print(f"throughput: {len(rows)} samples and moves read, checked, turned into records and "
-          f"JSON in {dt:.2f} s: {len(rows) / dt:,.0f} samples/s (target >= 2000); "
-          f"{len(scenario.loops)} loops")
+    print(
+        f"throughput: {len(rows)} samples and moves read, checked, turned into records and "
+        f"JSON in {dt:.2f} s: {len(rows) / dt:,.0f} samples/s (target >= 2000); "
+        f"{len(scenario.loops)} loops"
+    )
 
 
 def main() -> None:

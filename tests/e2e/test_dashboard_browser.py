@@ -51,8 +51,18 @@ def test_demo_run_watched_and_acted_on_in_a_browser(tmp_path):
     port = _free_port()
     log = tmp_path / "wncs_run.log"
     run = subprocess.Popen(
-        [WNCS, "run", str(SCENARIOS / "jcstr_wncs.yaml"), "--out", str(out), "--realtime",
-         "0.6", "--dashboard", str(port), "--quiet"],
+        [
+            WNCS,
+            "run",
+            str(SCENARIOS / "jcstr_wncs.yaml"),
+            "--out",
+            str(out),
+            "--realtime",
+            "0.6",
+            "--dashboard",
+            str(port),
+            "--quiet",
+        ],
         stdout=log.open("w"),
         stderr=subprocess.STDOUT,
         text=True,

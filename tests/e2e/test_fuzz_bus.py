@@ -95,16 +95,18 @@ def _mutations(rng: np.random.Generator, body: dict) -> dict:
     return broken
 
 
-def _garbage(rng: np.random.Generator, run_id: str, owner: str, seq: int, round_: int,
-             template: dict | None) -> bytes:
+def _garbage(
+    rng: np.random.Generator, run_id: str, owner: str, seq: int, round_: int, template: dict | None
+) -> bytes:
     kind = int(rng.integers(0, 4 if template is not None else 3))
     if kind == 0:
         return rng.bytes(int(rng.integers(0, 48)))
     if kind == 1:
         return msgpack.packb([1, "x", None, 2.5][int(rng.integers(0, 4))])
     if kind == 2:
-        return msgpack.packb({"v": 1, "run": run_id, "src": owner, "seq": "x", "round": -1,
-                              "t": None, "body": {}})
+        return msgpack.packb(
+            {"v": 1, "run": run_id, "src": owner, "seq": "x", "round": -1, "t": None, "body": {}}
+        )
     assert template is not None
     # a schema-violating body in a well-formed envelope of the run, from the key's owner
     head = {"v": 1, "run": run_id, "src": owner, "seq": seq, "round": round_, "t": 0}

@@ -75,8 +75,11 @@ def test_the_stream_carries_the_history_in_order(finished_run):
         # a replay takes no requests
         ws.send_text(json.dumps({"id": 1, "type": "mode", "mode": "steady_state"}))
         answer = ws.receive_json()
-    assert answer == {"type": "error", "id": 1,
-                      "reason": "the run has ended: a replay takes no requests"}
+    assert answer == {
+        "type": "error",
+        "id": 1,
+        "reason": "the run has ended: a replay takes no requests",
+    }
     for loop in ("level", "temperature"):
         meas = _history(out, keys.meas(loop))
         assert streams[f"meas/{loop}"] == [[t / 1e6, b["value"]] for t, b in meas]
@@ -107,9 +110,7 @@ def _live(tmp_path, end_time: float, realtime: float):
     result: dict = {}
     scenario = _variant(tmp_path, end_time)
     runner = threading.Thread(
-        target=lambda: result.update(
-            r=launch(scenario, out, engine="threads", realtime=realtime)
-        )
+        target=lambda: result.update(r=launch(scenario, out, engine="threads", realtime=realtime))
     )
     runner.start()
 
@@ -124,10 +125,14 @@ def _live(tmp_path, end_time: float, realtime: float):
 BAD = [
     ("{not json", "not JSON"),
     (json.dumps({"id": 5, "type": "reboot"}), "unknown request 'reboot'"),
-    (json.dumps({"id": 6, "type": "setpoint", "loop": "pressure", "value": 1.0}),
-     "unknown loop 'pressure'"),
-    (json.dumps({"id": 7, "type": "event", "event": "node_down", "fields": {"node": "r9"}}),
-     "unknown node 'r9'"),
+    (
+        json.dumps({"id": 6, "type": "setpoint", "loop": "pressure", "value": 1.0}),
+        "unknown loop 'pressure'",
+    ),
+    (
+        json.dumps({"id": 7, "type": "event", "event": "node_down", "fields": {"node": "r9"}}),
+        "unknown node 'r9'",
+    ),
 ]
 
 
@@ -178,9 +183,13 @@ def test_a_button_request_reaches_the_clock_and_the_history(tmp_path):
     [(t_event, body)] = _history(out, keys.network_events("network"))
     assert body["event"] == {"type": "node_down", "node": "r1"}
     assert t_event >= 2_000_000
-    requests = [r for r in streams["timeline"] if r["kind"] == "request" and
-                r["key"] == "events/network"]
+    requests = [
+        r for r in streams["timeline"] if r["kind"] == "request" and r["key"] == "events/network"
+    ]
     assert [r["t"] for r in requests] == [t_event / 1e6]
-    after = [(d["verdict"], d["subject"]) for d in streams["timeline"]
-             if d["kind"] == "decision" and d["t"] >= t_event / 1e6 and d["subject"] == "proposal"]
+    after = [
+        (d["verdict"], d["subject"])
+        for d in streams["timeline"]
+        if d["kind"] == "decision" and d["t"] >= t_event / 1e6 and d["subject"] == "proposal"
+    ]
     assert after[:2] == [("reject", "proposal"), ("accept", "proposal")]

@@ -71,8 +71,10 @@ def test_losses_are_counted_per_path_and_reason(scenario):
 
 def test_true_output_comes_from_the_plant_state_of_the_loop_sensor(scenario):
     view = RunView(scenario)
-    body = {"t": [0, 10_000, 20_000], "values": {"H": [0.66, 0.67, 0.68], "T": [50.0] * 3,
-                                                 "T_j": [143.0] * 3}}
+    body = {
+        "t": [0, 10_000, 20_000],
+        "values": {"H": [0.66, 0.67, 0.68], "T": [50.0] * 3, "T_j": [143.0] * 3},
+    }
     batch = view.ingest([_row(1, 0.02, keys.plant_state("reactor"), body)])
     assert batch["y/level"] == [[0.0, 0.66], [0.01, 0.67], [0.02, 0.68]]
     assert batch["y/temperature"] == [[0.0, 50.0], [0.01, 50.0], [0.02, 50.0]]
@@ -83,9 +85,14 @@ def test_injected_and_scheduled_events_change_the_topology(scenario):
     first = view.streams["topology/network"][0]
     assert first["nodes"]["r1"]["up"] is True
     batch = view.ingest(
-        [_row(1, 5.0, keys.network_events("network"), {"event": {"type": "node_down",
-                                                                  "node": "r3"},
-                                                        "source": "injected"})]
+        [
+            _row(
+                1,
+                5.0,
+                keys.network_events("network"),
+                {"event": {"type": "node_down", "node": "r3"}, "source": "injected"},
+            )
+        ]
     )
     [topo] = batch["topology/network"]
     assert topo["nodes"]["r3"]["up"] is False and topo["nodes"]["r1"]["up"] is True
@@ -97,16 +104,25 @@ def test_injected_and_scheduled_events_change_the_topology(scenario):
     assert batch["topology/network"][-1]["nodes"]["r1"]["up"] is False
     # an event the gateway would refuse (unknown node) changes nothing
     batch = view.ingest(
-        [_row(4, 25.0, keys.network_events("network"), {"event": {"type": "node_down",
-                                                                  "node": "zz"}})]
+        [
+            _row(
+                4,
+                25.0,
+                keys.network_events("network"),
+                {"event": {"type": "node_down", "node": "zz"}},
+            )
+        ]
     )
     assert "topology/network" not in batch
 
 
 def test_battery_from_net_stats(scenario):
     view = RunView(scenario)
-    stats = {"t": 0, "paths": {}, "nodes": {"r1": {"energy_mAh": 1.0, "battery_pct": 42.5,
-                                                   "lifetime_h": 10.0}}}
+    stats = {
+        "t": 0,
+        "paths": {},
+        "nodes": {"r1": {"energy_mAh": 1.0, "battery_pct": 42.5, "lifetime_h": 10.0}},
+    }
     batch = view.ingest([_row(1, 4.0, keys.net_stats(), stats, src="network")])
     assert batch["topology/network"][-1]["nodes"]["r1"]["battery"] == 42.5
 
@@ -127,13 +143,21 @@ def test_invalid_rows_are_listed_never_read(scenario):
 
 def test_decisions_rates_and_periods(scenario):
     view = RunView(scenario)
-    decision = {"subject": "proposal", "network": "network", "proposal": 1, "verdict": "reject",
-                "reasons": ["level: delay too long"]}
-    rates = {"mode": "steady_state", "periods": {"level": 1_000_000, "temperature": 500_000},
-             "closed": {"level": False, "temperature": True}, "proposal": 0}
+    decision = {
+        "subject": "proposal",
+        "network": "network",
+        "proposal": 1,
+        "verdict": "reject",
+        "reasons": ["level: delay too long"],
+    }
+    rates = {
+        "mode": "steady_state",
+        "periods": {"level": 1_000_000, "temperature": 500_000},
+        "closed": {"level": False, "temperature": True},
+        "proposal": 0,
+    }
     batch = view.ingest(
-        [_row(1, 24.0, keys.wncsca_decision(), decision),
-         _row(2, 24.0, keys.wncsca_rates(), rates)]
+        [_row(1, 24.0, keys.wncsca_decision(), decision), _row(2, 24.0, keys.wncsca_rates(), rates)]
     )
     kinds = [(r["kind"], r.get("verdict")) for r in batch["timeline"]]
     assert kinds == [("decision", "reject"), ("rates", None)]
@@ -145,8 +169,10 @@ def test_decisions_rates_and_periods(scenario):
 def test_snapshot_is_the_sum_of_the_batches(scenario):
     view = RunView(scenario)
     before = view.snapshot()
-    rows = [_row(i, i * 0.1, keys.move("level"), {"value": float(i), "t_computed": 0})
-            for i in range(1, 50)]
+    rows = [
+        _row(i, i * 0.1, keys.move("level"), {"value": float(i), "t_computed": 0})
+        for i in range(1, 50)
+    ]
     a = view.ingest(rows[:20])
     b = view.ingest(rows[20:])
     snap = view.snapshot()
@@ -172,8 +198,10 @@ def test_decimation_keeps_peaks_and_order():
 
 def test_a_batch_beyond_max_points_is_decimated(scenario):
     view = RunView(scenario, max_points=400)
-    rows = [_row(i, i * 1e-3, keys.move("level"), {"value": float(i % 7), "t_computed": 0})
-            for i in range(1, 10_001)]
+    rows = [
+        _row(i, i * 1e-3, keys.move("level"), {"value": float(i % 7), "t_computed": 0})
+        for i in range(1, 10_001)
+    ]
     batch = view.ingest(rows)
     assert len(batch["u/level"]) <= 400
     assert view.rows == 10_000
@@ -189,16 +217,26 @@ def run_dir(tmp_path, scenario):
 
 
 def test_a_button_makes_the_request_wncs_inject_makes(run_dir):
-    cmd = parse(json.dumps({"id": 3, "type": "event", "event": "node_down",
-                            "fields": {"node": "r1"}}), run_dir)
+    cmd = parse(
+        json.dumps({"id": 3, "type": "event", "event": "node_down", "fields": {"node": "r1"}}),
+        run_dir,
+    )
     assert cmd.id == 3
     assert cmd.request == build_request("node_down", ["node=r1"], run_dir=run_dir, network=None)
     cmd = parse(json.dumps({"type": "setpoint", "loop": "level", "value": 0.72}), run_dir)
     assert cmd.request == InjectRequest(setpoint={"loop": "level", "value": 0.72})
     cmd = parse(json.dumps({"type": "mode", "mode": "steady_state"}), run_dir)
     assert cmd.request == InjectRequest(mode="steady_state")
-    cmd = parse(json.dumps({"type": "event", "event": "link_degraded",
-                            "fields": {"a": "r1", "b": "r2", "prr": 0.5}}), run_dir)
+    cmd = parse(
+        json.dumps(
+            {
+                "type": "event",
+                "event": "link_degraded",
+                "fields": {"a": "r1", "b": "r2", "prr": 0.5},
+            }
+        ),
+        run_dir,
+    )
     assert cmd.request.event == {"type": "link_degraded", "a": "r1", "b": "r2", "prr": 0.5}
 
 
@@ -214,13 +252,17 @@ def test_a_button_makes_the_request_wncs_inject_makes(run_dir):
         ('{"type": "setpoint", "loop": "level", "value": "high"}', "not a finite number"),
         ('{"type": "setpoint", "loop": "level", "value": NaN}', "not a finite number"),
         ('{"type": "setpoint", "loop": "level", "value": 1e300}', "beyond a physical value"),
-        ('{"type": "event", "event": "node_down", "fields": {"node": "r9"}}',
-         "unknown node 'r9'"),
+        ('{"type": "event", "event": "node_down", "fields": {"node": "r9"}}', "unknown node 'r9'"),
         ('{"type": "event", "event": "meteor", "fields": {}}', "event 'meteor'"),
-        ('{"type": "event", "event": "link_degraded", "fields": {"a": "r1", "b": "r2", '
-         '"prr": 7}}', "prr"),
-        ('{"type": "event", "event": "interference", "fields": {"channels": [11], "prr": 0.1}}',
-         "needs a TSCH network"),
+        (
+            '{"type": "event", "event": "link_degraded", "fields": {"a": "r1", "b": "r2", '
+            '"prr": 7}}',
+            "prr",
+        ),
+        (
+            '{"type": "event", "event": "interference", "fields": {"channels": [11], "prr": 0.1}}',
+            "needs a TSCH network",
+        ),
         ('{"id": [1], "type": "mode", "mode": "steady_state"}', "id: must be"),
         ("x" * 70_000, "too long"),
     ],
@@ -235,20 +277,41 @@ def test_the_accepted_tsch_schedule_is_shown():
     scenario = load_scenario(SCENARIOS / "jcstr_tsch.yaml")
     view = RunView(scenario)
     [net] = scenario.gateways()
-    cells = [{"slot": 3, "channel": 0, "tx": "s_level", "rx": "r1"},
-             {"slot": 7, "channel": 1, "tx": "r1", "rx": "gw"}]
-    tsch = {"slot_ticks": 10_000, "length": 240, "channel_offsets": 4, "retry_cells": 1,
-            "static": False, "cells": cells}
+    cells = [
+        {"slot": 3, "channel": 0, "tx": "s_level", "rx": "r1"},
+        {"slot": 7, "channel": 1, "tx": "r1", "rx": "gw"},
+    ]
+    tsch = {
+        "slot_ticks": 10_000,
+        "length": 240,
+        "channel_offsets": 4,
+        "retry_cells": 1,
+        "static": False,
+        "cells": cells,
+    }
     proposal = {"id": 0, "event": "initial", "source": "initial", "paths": {}, "tsch": tsch}
-    decision = {"subject": "proposal", "network": net, "proposal": 0, "verdict": "accept",
-                "reasons": []}
-    batch = view.ingest([_row(1, 0.0, keys.net_proposal(), proposal, src=net),
-                         _row(2, 0.0, keys.wncsca_decision(), decision, src="wncsca")])
+    decision = {
+        "subject": "proposal",
+        "network": net,
+        "proposal": 0,
+        "verdict": "accept",
+        "reasons": [],
+    }
+    batch = view.ingest(
+        [
+            _row(1, 0.0, keys.net_proposal(), proposal, src=net),
+            _row(2, 0.0, keys.wncsca_decision(), decision, src="wncsca"),
+        ]
+    )
     [schedule] = batch[f"schedule/{net}"]
     assert schedule["length"] == 240 and schedule["channel_offsets"] == 4
     assert schedule["cells"] == cells
     assert view.static()["networks"][net]["tsch"] is True
     rejected = {**decision, "proposal": 1, "verdict": "reject"}
-    batch = view.ingest([_row(3, 1.0, keys.net_proposal(), {**proposal, "id": 1}, src=net),
-                         _row(4, 1.0, keys.wncsca_decision(), rejected, src="wncsca")])
+    batch = view.ingest(
+        [
+            _row(3, 1.0, keys.net_proposal(), {**proposal, "id": 1}, src=net),
+            _row(4, 1.0, keys.wncsca_decision(), rejected, src="wncsca"),
+        ]
+    )
     assert f"schedule/{net}" not in batch
