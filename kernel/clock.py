@@ -137,6 +137,9 @@ class ClockRunner:
         self._seq = 0
         self.dropped_invalid: dict[str, dict[str, int]] = {}
         self.error: str | None = None
+        self.span: tuple[float, float] | None = None
+        """``perf_counter`` at the first round and after the last of a run that ended well: its
+        run phase, stamped where the rounds go (a run's progress display may see them late)."""
         self.dropped_nodes: list[dict[str, Any]] = []
         self._injections: list[tuple[str, BaseModel]] = []  # (run-relative key, body)
         self._cancelled: str | None = None  # the reason given to cancel(), if any
@@ -301,7 +304,9 @@ class ClockRunner:
         try:
             try:
                 self._wait_for_participants()
+                began = time.perf_counter()
                 self._rounds()
+                self.span = (began, time.perf_counter())
                 self._publish_stop(self._stop(ok=True))
                 log.info("run finished at round %d", self.planner.round)
                 code = 0
@@ -489,6 +494,10 @@ class ClockRunner:
         cancel (lock held)."""
         while self._collecting and (self._who & self.members) <= set(self._dones):
             self._collecting = False
+            if self._cancelled is not None and self._cancelling is None:
+                # cancel() came during this round, and the rounds move on faster than the loop
+                # takes its request: this round was the one under way, so none starts after it
+                self._cancelling = self._cancelled
             if self._cancelling is not None:
                 self._running = False
                 self._queue.put(("halted", "", b""))

@@ -180,10 +180,10 @@ class BusNode:
             )
             for rel in self._control_keys
         ]
-        for pattern in self.behaviour.patterns:
-            declared.append(
-                session.declare_subscriber(keys.full(self.run_id, pattern), self._on_data)
-            )
+        data = [
+            session.declare_subscriber(keys.full(self.run_id, pattern), self._on_data)
+            for pattern in self.behaviour.patterns
+        ]
         declared.append(
             session.liveliness().declare_subscriber(
                 keys.full(self.run_id, keys.alive("clock")),
@@ -196,10 +196,13 @@ class BusNode:
         finally:
             self._over = True  # no round after this; one under way stops waiting
             self._interrupt_round("clock_gone")
-            # Leaving: the token first (the clock sees us go), subscribers and publishers with the
-            # session. Undeclaring the clock-liveliness subscriber here races the clock's own exit
-            # and makes zenoh log "Unknown token".
+            # Leaving: the token first (the clock sees us go), then the data subscriptions (the
+            # threads engine's session outlives a node that leaves early: they would file
+            # messages for nobody), the rest with the session. Undeclaring the clock-liveliness
+            # subscriber here races the clock's own exit and makes zenoh log "Unknown token".
             token.undeclare()
+            for sub in data:
+                sub.undeclare()
             self._declared = declared  # keep the declarations alive until the session closes
 
     def _serve(self) -> int:

@@ -28,7 +28,7 @@ from __future__ import annotations
 import json
 import os
 import secrets
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,6 +79,17 @@ class Grant:
     tokens: tuple[str, ...] = ()
     watches: tuple[str, ...] = ()
     matches: tuple[str, ...] = ()
+
+    @staticmethod
+    def union(grants: Iterable[Grant]) -> Grant:
+        """What any of ``grants`` allows: for one session that several identities' code shares
+        (the threads engine's nodes, one process)."""
+        grants = list(grants)
+
+        def joined(field: str) -> tuple[str, ...]:
+            return tuple(sorted({k for g in grants for k in getattr(g, field)}))
+
+        return Grant(*(joined(f) for f in ("puts", "subscribes", "tokens", "watches", "matches")))
 
 
 @dataclass(frozen=True)

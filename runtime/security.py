@@ -9,8 +9,9 @@ the clock's. The clock publishes the ticks, its log, the stop and the requests i
 listens to ``clock/done/*`` and ``ops/inject``. ``wncs inject`` may put exactly ``ops/inject``
 (and learn that the clock listens there); ``dashboard`` may put exactly ``ops/inject`` too, and
 read the run (it shows it); ``launcher`` (``wncs run``'s own session, for its progress line)
-reads the clock's log and the stop and watches who is alive. The historian reads everything
-and publishes nothing. Every publisher may learn of every subscription in the run
+reads the clock's log and the stop and watches who is alive; ``threads``, the threads engine's
+one session for all its nodes and its clock, may do what any of them may. The historian reads
+everything and publishes nothing. Every publisher may learn of every subscription in the run
 (``matches``): a zenoh 1.10 client's declared publisher sends nothing to a router that has not
 told it of a matching subscriber.
 :func:`prepare` writes the credentials and the access control under ``<run dir>/security``
@@ -45,6 +46,7 @@ __all__ = [
     "INJECT",
     "DASHBOARD",
     "LAUNCHER",
+    "THREADS",
     "use_node_credentials",
     "grants",
     "prepare",
@@ -64,6 +66,10 @@ authenticates with ``NAME.json`` from it (the launcher sets it for its node proc
 INJECT = "inject"
 DASHBOARD = "dashboard"
 LAUNCHER = "launcher"
+THREADS = "threads"
+"""The threads engine's identity: its nodes and clock share one session (one process, one
+interpreter: no node there is kept from another's memory, so separate identities would guard
+nothing), allowed what any of them is (:meth:`kernel.security.Grant.union`)."""
 
 
 def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
@@ -94,6 +100,7 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
         watches=full(keys.alive_all()),
         matches=full("**"),
     )
+    out[THREADS] = Grant.union(out.values())
     out[INJECT] = Grant(puts=full(keys.inject()), matches=full(keys.inject()))
     out[LAUNCHER] = Grant(  # wncs run's progress line: the clock's log, the stop, who is alive
         subscribes=full(keys.tick_log(), keys.stop()), watches=full(keys.alive_all())

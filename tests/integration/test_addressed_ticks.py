@@ -1,9 +1,10 @@
 """Ticks go to the round's participants only (issue 20): a node receives the tick of a round
 it takes part in, and of every SYNC_ROUNDS-th round, and no other; the historian every tick.
-And a node whose session cannot connect fails the threads engine's start at once, named."""
+And a threads run whose session cannot connect fails its start at once."""
 
 from __future__ import annotations
 
+import json
 import threading
 
 from core.errors import ConfigError
@@ -45,19 +46,19 @@ def test_a_node_receives_only_the_ticks_of_its_rounds_and_the_sync_ticks(tmp_pat
     assert len(operator) < rounds / 50
 
 
-def test_a_session_that_cannot_connect_fails_the_start_at_once_naming_its_node(
-    tmp_path, monkeypatch
-):
+def test_a_session_that_cannot_connect_fails_the_start_at_once(tmp_path, monkeypatch):
+    """The threads engine's nodes share one session (identity ``threads``): when it cannot
+    connect, the start fails at once, saying so, not after the clock's start-up timeout."""
     real = launcher.open_client
 
-    def refuse_one(endpoint, *args, **kwargs):
-        if threading.current_thread().name == "level_controller":
+    def refuse_the_nodes(endpoint, *args, **kwargs):
+        if '"user": "threads"' in json.dumps(kwargs.get("settings")):
             raise ConfigError(f"no router answers at {endpoint}")
         return real(endpoint, *args, **kwargs)
 
-    monkeypatch.setattr(launcher, "open_client", refuse_one)
+    monkeypatch.setattr(launcher, "open_client", refuse_the_nodes)
     res = launch(BENCHMARK, tmp_path / "run", engine="threads")
     assert res.code == 1
-    # the node's own failure, not the clock's "did not come alive within 120 s"
-    assert res.error.startswith("node 'level_controller' failed while starting"), res.error
+    # the session's own failure, not the clock's "did not come alive within 120 s"
+    assert res.error.startswith("the nodes' session failed while starting"), res.error
     assert "no router answers" in res.error

@@ -116,6 +116,61 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
     assert _traces(res.summary) == _traces(summarize(simulate(load_scenario(BENCHMARK))))
 
 
+def test_a_threads_runs_nodes_and_clock_share_one_session(tmp_path):
+    """The router's own account (its admin space, readable in an insecure run) while a threads
+    run goes: every participant's and the clock's liveliness token comes from one and the same
+    client session, and the router holds only that one, the launcher's and this probe's."""
+    out = tmp_path / "run"
+    result = {}
+    runner = threading.Thread(
+        target=lambda: result.update(
+            r=launch(
+                BENCHMARK,
+                out,
+                engine="threads",
+                realtime=1.0,
+                insecure=True,
+                overrides=["end_time=3.0"],
+            )
+        )
+    )
+    runner.start()
+
+    def announced() -> bool:
+        run = out / "run.json"
+        return run.exists() and bool(json.loads(run.read_text()).get("endpoint"))
+
+    wait_until(announced, timeout=60, what="run.json with the router endpoint")
+    info = json.loads((out / "run.json").read_text())
+    members = {"clock", *load_scenario(BENCHMARK).participants()}
+    probe = open_client(info["endpoint"])
+    try:
+
+        def admin(selector: str) -> dict[str, dict]:
+            return {
+                str(r.ok.key_expr): json.loads(r.ok.payload.to_bytes())
+                for r in probe.get(selector)
+                if r.ok is not None
+            }
+
+        tokens: dict[str, dict] = {}
+
+        def every_token() -> bool:
+            tokens.update(admin(f"@/*/router/token/{keys.full(info['run_id'], 'alive/*')}"))
+            return {k.rsplit("/", 1)[-1] for k in tokens} >= members
+
+        wait_until(every_token, timeout=60, what="every node's liveliness token at the router")
+        (router,) = admin("@/*/router").values()
+    finally:
+        probe.close()
+    runner.join()
+    assert result["r"].code == 0, result["r"].error
+    holders = {c for t in tokens.values() for c in t["clients"]}
+    assert len(holders) == 1
+    assert len(router["sessions"]) == 3  # the nodes' one, the launcher's, this probe's
+    assert holders <= {s["peer"] for s in router["sessions"]}
+
+
 def test_tank_scenarios_over_the_bus_equal_direct(tmp_path):
     """Seed 002's loops (non-linear PI; self-tuning with seeded measurement noise) on the bus."""
     short = yaml.safe_load((SCENARIOS / "tank_sim.yaml").read_text())

@@ -26,6 +26,7 @@ from runtime.security import (
     DASHBOARD,
     INJECT,
     LAUNCHER,
+    THREADS,
     grants,
     is_loopback,
     prepare,
@@ -75,6 +76,22 @@ def test_each_node_may_put_only_the_keys_it_owns():
     assert g[INJECT] == Grant(puts=(_p("ops/inject"),), matches=(_p("ops/inject"),))
     assert g[DASHBOARD].puts == (_p("ops/inject"),)
     assert g["historian"].puts == (_p("clock/done/historian"),)
+
+
+def test_the_threads_engines_session_may_do_what_its_nodes_and_clock_may_and_no_more():
+    """The threads engine's nodes share one session as ``threads`` (runtime.launcher): its
+    grant is the union of the participants' and the clock's, checked key by key here; the
+    identities outside the run's process (inject, dashboard, launcher) add nothing to it."""
+    g = grants(load_scenario(BENCHMARK), RUN)
+    inside = ["clock", *load_scenario(BENCHMARK).participants()]
+    for field in ("puts", "subscribes", "tokens", "watches", "matches"):
+        union = set()
+        for name in inside:
+            union |= set(getattr(g[name], field))
+        assert set(getattr(g[THREADS], field)) == union, field
+    assert _p("clock/tick/*") in g[THREADS].puts and _p("plant/reactor/state") in g[THREADS].puts
+    assert _p("ops/inject") not in g[THREADS].puts  # the clock listens there; nobody inside puts
+    assert len(g[THREADS].tokens) == len(inside)
 
 
 def test_the_access_control_denies_by_default_and_names_one_subject_per_identity(tmp_path):
