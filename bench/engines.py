@@ -15,7 +15,10 @@ a node (a router process; the answering client in this process for the threads e
 process of its own for the processes engine), and with all three in this process, where zenoh
 crosses no process boundary (a floor no run's round can reach; with ``ZENOH_RUNTIME='(rx:
 (handover: app), tx: (handover: app), acc: (handover: app))'`` it is about 0.1 ms, 2-4x faster
-than across processes: ``docs/benchmarks.md``).
+than across processes: ``docs/benchmarks.md``). The threads engine's nodes share one session
+(:func:`runtime.launcher._run_threads`), so its rounds no longer take the router's path at all:
+its floor here is the issue's, a round trip through the router, not the path it takes (a ping
+on one session is about 0.07 ms: ``docs/benchmarks.md``).
 
 With ``--against REV`` it first times the direct engine here and at git revision ``REV``
 (alternately, same machine, same moment; see ``bench/against.py``) and prints both and their

@@ -29,7 +29,7 @@ import json
 import os
 import secrets
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -89,7 +89,7 @@ class Grant:
         def joined(field: str) -> tuple[str, ...]:
             return tuple(sorted({k for g in grants for k in getattr(g, field)}))
 
-        return Grant(*(joined(f) for f in ("puts", "subscribes", "tokens", "watches", "matches")))
+        return Grant(**{f.name: joined(f.name) for f in fields(Grant)})
 
 
 @dataclass(frozen=True)

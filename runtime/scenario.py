@@ -23,7 +23,8 @@ delivered like any loop, but no move is published for it and it has no actuator 
 carries what one multi-loop controller's law transmits (``transmit(t)``, every ``period``) to
 another (``receive(t, link, values)``) over a network node, like a sensor path.
 
-Two node names are reserved and always present: ``clock`` and ``historian``.
+Two node names are reserved and always present: ``clock`` and ``historian``; the names of the
+bus identities that are not nodes are reserved too (:data:`RESERVED_NODES`).
 """
 
 from __future__ import annotations
@@ -105,7 +106,11 @@ __all__ = [
 HISTORIAN = "historian"
 """The historian's name: a participant of every run, not one of the scenario's nodes."""
 
-RESERVED_NODES = ("clock", HISTORIAN)
+RESERVED_NODES = ("clock", HISTORIAN, "inject", "dashboard", "launcher", "threads", "router")
+"""Names no node may take: the clock and the historian, and the bus identities that are not
+nodes (:mod:`runtime.security`: ``wncs inject``, the dashboard, ``wncs run``'s own session, the
+threads engine's session, routers joining each other), whose credentials and grants a node of
+that name would take over."""
 
 _C = TypeVar("_C", bound=BaseModel)
 

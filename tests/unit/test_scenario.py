@@ -63,6 +63,12 @@ CASES = [
         "Extra inputs",
     ),
     ("reserved_name", lambda d: _nodes(d).update(clock={"kind": "operator"}), "nodes", "reserved"),
+    (  # a bus identity's name: the node would take over its credentials and grants
+        "identity_name",
+        lambda d: _nodes(d).update(threads={"kind": "operator"}),
+        "nodes",
+        "reserved",
+    ),
     (
         "unreachable_setpoint",
         lambda d: d["setpoints"].append({"t": 3.0, "loop": "temperature", "value": 1000.0}),

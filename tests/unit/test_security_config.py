@@ -21,7 +21,7 @@ from kernel.security import (
     read_credential,
     router_settings,
 )
-from runtime.scenario import load_scenario
+from runtime.scenario import RESERVED_NODES, load_scenario
 from runtime.security import (
     DASHBOARD,
     INJECT,
@@ -92,6 +92,15 @@ def test_the_threads_engines_session_may_do_what_its_nodes_and_clock_may_and_no_
     assert _p("clock/tick/*") in g[THREADS].puts and _p("plant/reactor/state") in g[THREADS].puts
     assert _p("ops/inject") not in g[THREADS].puts  # the clock listens there; nobody inside puts
     assert len(g[THREADS].tokens) == len(inside)
+
+
+def test_no_node_may_take_the_name_of_an_identity_that_is_not_a_node():
+    """A node named like one of the run's other identities would overwrite its credential and
+    its grant (one file and one subject per name): the scenario refuses every such name."""
+    scenario = load_scenario(BENCHMARK)
+    others = set(grants(scenario, RUN)) - set(scenario.nodes) | {ROUTER}
+    assert {"clock", "historian", THREADS, INJECT, DASHBOARD, LAUNCHER, ROUTER} <= others
+    assert others <= set(RESERVED_NODES)
 
 
 def test_the_access_control_denies_by_default_and_names_one_subject_per_identity(tmp_path):
