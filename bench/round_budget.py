@@ -26,7 +26,9 @@ a round alone, in one thread, and multiplies by how often a run does it:
 * the round's skeleton: a tick's callback at the node puts a ``Done`` and the ``Done``'s callback
   at the clock puts the next tick (as :mod:`kernel.node` and :mod:`kernel.clock` do), over a
   router in a process of its own, as in a run, with no work at all: the floor of the protocol
-  as built.
+  as built. (Since the threads engine's nodes share one session, its ticks and ``Done``s no
+  longer cross the router: the skeleton is the processes engine's floor, and a threads run's
+  trips are shorter than it: ``docs/benchmarks.md``.)
 
 Printed: per round, each part's count and cost, their sum, and the measured per-round wall cost
 of the run (run phase over rounds) with its ratio to the round trip. What the sum does not cover

@@ -117,9 +117,10 @@ def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
 
 
 def test_a_threads_runs_nodes_and_clock_share_one_session(tmp_path):
-    """The router's own account (its admin space, readable in an insecure run) while a threads
-    run goes: every participant's and the clock's liveliness token comes from one and the same
-    client session, and the router holds only that one, the launcher's and this probe's."""
+    """The router's own account (its admin space, readable in an insecure run) once round 0 has
+    run (so every member is alive): every participant's and the clock's liveliness token comes
+    from one and the same client session, and the router holds only that one, the launcher's
+    and this probe's."""
     out = tmp_path / "run"
     result = {}
     runner = threading.Thread(
@@ -130,7 +131,7 @@ def test_a_threads_runs_nodes_and_clock_share_one_session(tmp_path):
                 engine="threads",
                 realtime=1.0,
                 insecure=True,
-                overrides=["end_time=3.0"],
+                overrides=["end_time=6.0"],
             )
         )
     )
@@ -145,26 +146,28 @@ def test_a_threads_runs_nodes_and_clock_share_one_session(tmp_path):
     members = {"clock", *load_scenario(BENCHMARK).participants()}
     probe = open_client(info["endpoint"])
     try:
+        (router_zid,) = [str(z) for z in probe.info.routers_zid()]
+        logged = threading.Event()  # the clock's log: round 0 ran, every member is alive
+        sub = probe.declare_subscriber(
+            keys.full(info["run_id"], keys.tick_log()), lambda s: logged.set()
+        )
+        assert logged.wait(60), "no tick logged within 60 s"
 
-        def admin(selector: str) -> dict[str, dict]:
+        def admin(rel: str) -> dict[str, dict]:  # asks the router alone, not the clients
             return {
                 str(r.ok.key_expr): json.loads(r.ok.payload.to_bytes())
-                for r in probe.get(selector)
+                for r in probe.get(f"@/{router_zid}/router{rel}")
                 if r.ok is not None
             }
 
-        tokens: dict[str, dict] = {}
-
-        def every_token() -> bool:
-            tokens.update(admin(f"@/*/router/token/{keys.full(info['run_id'], 'alive/*')}"))
-            return {k.rsplit("/", 1)[-1] for k in tokens} >= members
-
-        wait_until(every_token, timeout=60, what="every node's liveliness token at the router")
-        (router,) = admin("@/*/router").values()
+        tokens = admin("/token/" + keys.full(info["run_id"], "alive/*"))
+        (router,) = admin("").values()
+        sub.undeclare()
     finally:
         probe.close()
     runner.join()
     assert result["r"].code == 0, result["r"].error
+    assert {k.rsplit("/", 1)[-1] for k in tokens} == members
     holders = {c for t in tokens.values() for c in t["clients"]}
     assert len(holders) == 1
     assert len(router["sessions"]) == 3  # the nodes' one, the launcher's, this probe's
