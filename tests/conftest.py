@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import json
 import threading
 import time
 from pathlib import Path
@@ -15,6 +16,7 @@ import yaml
 
 from bus_schemas import Tick, TickLog, codec
 from kernel.bus import open_router
+from runtime.launcher import launch
 from runtime.scenario import NODE_KINDS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,6 +84,22 @@ def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) 
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         ticker.wait(interval)
+
+
+def launch_aside(scenario: Path, out: Path, **options: Any) -> tuple[threading.Thread, dict]:
+    """``runtime.launcher.launch(scenario, out, **options)`` in a thread of its own, for a test
+    that acts on the bus while the run goes: returns the thread, once ``run.json`` names the
+    router's endpoint, and the dict its ``RunResult`` lands in (key ``"r"``) when it ends."""
+    result: dict[str, Any] = {}
+    runner = threading.Thread(target=lambda: result.update(r=launch(scenario, out, **options)))
+    runner.start()
+    run = out / "run.json"
+    wait_until(
+        lambda: run.exists() and bool(json.loads(run.read_text()).get("endpoint")),
+        timeout=60,
+        what="run.json with the router endpoint",
+    )
+    return runner, result
 
 
 @pytest.fixture(scope="session")

@@ -6,7 +6,6 @@ sent."""
 from __future__ import annotations
 
 import json
-import threading
 
 import pytest
 
@@ -15,9 +14,8 @@ from core.errors import ConfigError
 from kernel.bus import open_client
 from kernel.security import SECURITY_DIR
 from runtime.inject import build_request, send
-from runtime.launcher import launch
 from runtime.security import DASHBOARD, INJECT, credentials_of
-from tests.conftest import SCENARIOS, last_tick, wait_until, write_variant
+from tests.conftest import SCENARIOS, last_tick, launch_aside, wait_until, write_variant
 
 pytestmark = pytest.mark.slow
 
@@ -34,18 +32,8 @@ def _scenario(tmp_path):
 
 def test_mode_and_setpoint_injected_into_a_running_run(tmp_path):
     out = tmp_path / "run"
-    result = {}
     scenario = _scenario(tmp_path)
-    runner = threading.Thread(
-        target=lambda: result.update(r=launch(scenario, out, engine="threads", realtime=0.5))
-    )
-    runner.start()
-
-    def announced() -> bool:
-        run = out / "run.json"
-        return run.exists() and bool(json.loads(run.read_text()).get("endpoint"))
-
-    wait_until(announced, timeout=60, what="run.json with the router endpoint")
+    runner, result = launch_aside(scenario, out, engine="threads", realtime=0.5)
     info = json.loads((out / "run.json").read_text())
     security = out / SECURITY_DIR
     session = open_client(info["endpoint"], settings=credentials_of(security, DASHBOARD))

@@ -24,7 +24,7 @@ from runtime.historian import HistorianNode
 from runtime.history import connect, messages_digest
 from runtime.launcher import SWITCH_INTERVAL_S, launch
 from runtime.scenario import load_scenario
-from tests.conftest import BENCHMARK, SCENARIOS, wait_until, write_variant
+from tests.conftest import BENCHMARK, SCENARIOS, launch_aside, write_variant
 
 
 def _traces(summary):
@@ -77,19 +77,7 @@ def test_a_threads_run_tunes_the_interpreter_while_it_goes_and_restores_it_after
 
 def test_invalid_messages_on_the_bus_are_counted_not_fatal(tmp_path):
     out = tmp_path / "run"
-    result = {}
-    runner = threading.Thread(
-        target=lambda: result.update(
-            r=launch(BENCHMARK, out, engine="threads", realtime=0.5, insecure=True)
-        )
-    )
-    runner.start()
-
-    def announced() -> bool:
-        run = out / "run.json"
-        return run.exists() and bool(json.loads(run.read_text()).get("endpoint"))
-
-    wait_until(announced, timeout=60, what="run.json with the router endpoint")
+    runner, result = launch_aside(BENCHMARK, out, engine="threads", realtime=0.5, insecure=True)
     info = json.loads((out / "run.json").read_text())
     session = open_client(info["endpoint"])
     key = keys.full(info["run_id"], keys.meas("level"))
@@ -122,26 +110,9 @@ def test_a_threads_runs_nodes_and_clock_share_one_session(tmp_path):
     from one and the same client session, and the router holds only that one, the launcher's
     and this probe's."""
     out = tmp_path / "run"
-    result = {}
-    runner = threading.Thread(
-        target=lambda: result.update(
-            r=launch(
-                BENCHMARK,
-                out,
-                engine="threads",
-                realtime=1.0,
-                insecure=True,
-                overrides=["end_time=6.0"],
-            )
-        )
+    runner, result = launch_aside(
+        BENCHMARK, out, engine="threads", realtime=1.0, insecure=True, overrides=["end_time=6.0"]
     )
-    runner.start()
-
-    def announced() -> bool:
-        run = out / "run.json"
-        return run.exists() and bool(json.loads(run.read_text()).get("endpoint"))
-
-    wait_until(announced, timeout=60, what="run.json with the router endpoint")
     info = json.loads((out / "run.json").read_text())
     members = {"clock", *load_scenario(BENCHMARK).participants()}
     probe = open_client(info["endpoint"])
