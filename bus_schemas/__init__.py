@@ -31,6 +31,7 @@ from bus_schemas.bodies import (
     TickLog,
     Timing,
     TschCapacity,
+    Working,
 )
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope
 
@@ -60,6 +61,7 @@ __all__ = [
     "TickLog",
     "Timing",
     "TschCapacity",
+    "Working",
     "ScheduleSummary",
     "MonitorAssessment",
     "MonitorCandidate",

@@ -36,6 +36,7 @@ __all__ = [
     "Tick",
     "TickLog",
     "Done",
+    "Working",
     "Stop",
     "MonitorHarris",
     "MonitorCandidate",
@@ -507,6 +508,20 @@ class Done(BaseModel):
     def _digests_match_counts(self) -> Done:
         _check_digests(self.digests, self.published, "published")
         return self
+
+
+class Working(BaseModel):
+    """A participant is still working on round ``round`` (``clock/working/<node>``): its
+    progress heartbeat, sent while one of its rounds lasts longer than a beat (the agent
+    deciding, an identification fit), so that the clock's ``round_timeout_s`` judges silence,
+    not work (DESIGN section 3). Wall-clock only: it changes nothing in virtual time, and no
+    node's round waits for it."""
+
+    model_config = _FROZEN
+
+    round: int = Field(ge=0, strict=True)
+    node: str
+    busy_s: float = Field(ge=0, allow_inf_nan=False, description="wall time in the round so far")
 
 
 class Stop(BaseModel):

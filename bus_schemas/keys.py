@@ -22,6 +22,8 @@ __all__ = [
     "tick_to",
     "done",
     "done_all",
+    "working",
+    "working_all",
     "stop",
     "tick_log",
     "alive",
@@ -141,6 +143,16 @@ def done(node: str) -> str:
 
 def done_all() -> str:
     return "clock/done/*"
+
+
+def working(node: str) -> str:
+    """Where ``node`` says it is still working on a long round (``Working``, its progress
+    heartbeat): ``clock/working/<node>``."""
+    return f"clock/working/{check_name(node, 'node')}"
+
+
+def working_all() -> str:
+    return "clock/working/*"
 
 
 def stop() -> str:

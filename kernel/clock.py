@@ -19,7 +19,7 @@ from typing import Any
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import Done, InjectRequest, Stop, Tick, TickLog, codec, keys
+from bus_schemas import Done, InjectRequest, Stop, Tick, TickLog, Working, codec, keys
 from bus_schemas.errors import SchemaError
 from core.errors import NodeFault, ProtocolError
 from core.rounds import Participation, RoundPlanner, merge_dropped
@@ -51,6 +51,9 @@ class ClockSpec:
     max_microsteps: int
     may_drop: frozenset[str] = frozenset()
     max_rounds: int = 100_000_000
+    work_timeout_s: float = 3600.0
+    """The longest a node may work on one round while it says it is working (its progress
+    heartbeat, :mod:`kernel.heartbeat`): ``round_timeout_s`` judges silence, this judges work."""
     observers: frozenset[str] = frozenset()
     """Participants that take every tick from the clock's log (``clock/log``, :class:`TickLog`)
     and handle every round's messages but answer only the sync rounds (:data:`SYNC_ROUNDS`):
@@ -155,6 +158,7 @@ class ClockRunner:
         self._who: frozenset[str] = frozenset()
         self._dones: dict[str, Done] = {}
         self._round_started = 0.0
+        self._heard: dict[str, float] = {}  # node -> monotonic time of its last beat this round
         self._collecting = False
         self._running = False
         self._cancelling: str | None = None
@@ -299,6 +303,7 @@ class ClockRunner:
         subs = [
             live.declare_subscriber(self._full(keys.alive_all()), self._on_alive, history=True),
             self.session.declare_subscriber(self._full(keys.done_all()), self._on_done),
+            self.session.declare_subscriber(self._full(keys.working_all()), self._on_working),
             self.session.declare_subscriber(self._full(keys.inject()), self._on_inject),
         ]
         try:
@@ -374,7 +379,7 @@ class ClockRunner:
         try:
             while True:
                 with self._lock:
-                    deadline = self._round_started + self._round_timeout()
+                    deadline = self._deadline()
                     if self._cancelling is not None:
                         deadline = min(deadline, self._cancel_deadline)
                 # the rounds move on in callbacks: wake at least every round_timeout_s to time
@@ -418,20 +423,42 @@ class ClockRunner:
         is still start-up and has ``startup_timeout_s``; every later round ``round_timeout_s``."""
         return self.spec.startup_timeout_s if self._tick.round == 0 else self.spec.round_timeout_s
 
+    def _waited_for(self) -> frozenset[str]:
+        """The nodes ticked for the round under way that have not answered yet (lock held)."""
+        return (self._who & self.members) - set(self._dones)
+
+    def _deadline(self) -> float:
+        """When the round under way becomes a fault (monotonic, lock held): when a node it
+        waits for has been silent for :meth:`_round_timeout` since its tick or its last
+        progress beat, or has worked on it for ``work_timeout_s``."""
+        if not self._collecting:
+            return self._round_started + self._round_timeout()
+        waited = self._waited_for()
+        started = self._round_started
+        heard = min((self._heard.get(n, started) for n in waited), default=started)
+        return min(heard + self._round_timeout(), started + self.spec.work_timeout_s)
+
     def _check_round_time(self) -> None:
-        """The round under way has run out of its time (:meth:`_round_timeout`), or a cancel out
-        of its grace: a fault naming the silent nodes (lock held)."""
-        if self._cancelling is not None and time.monotonic() >= self._cancel_deadline:
+        """A node of the round under way has been silent for its time (:meth:`_round_timeout`)
+        or has worked past ``work_timeout_s``, or a cancel is out of its grace: a fault naming
+        the nodes (lock held)."""
+        now = time.monotonic()
+        if self._cancelling is not None and now >= self._cancel_deadline:
             raise NodeFault(self._cancelling)
-        timeout = self._round_timeout()
-        if not self._collecting or time.monotonic() < self._round_started + timeout:
+        if not self._collecting:
             return
-        tick = self._tick
-        silent = sorted((self._who & self.members) - set(self._dones))
-        raise NodeFault(
-            f"node(s) {silent} did not answer round {tick.round} "
-            f"(t = {to_units(tick.t):.6f} {self.spec.time_unit}) within {timeout} s"
-        )
+        tick, timeout = self._tick, self._round_timeout()
+        where = f"round {tick.round} (t = {to_units(tick.t):.6f} {self.spec.time_unit})"
+        waited = self._waited_for()
+        started = self._round_started
+        silent = sorted(n for n in waited if now >= self._heard.get(n, started) + timeout)
+        if silent:
+            raise NodeFault(f"node(s) {silent} did not answer {where} within {timeout} s")
+        if waited and now >= started + self.spec.work_timeout_s:
+            raise NodeFault(
+                f"node(s) {sorted(waited)} still working on {where} after "
+                f"{self.spec.work_timeout_s} s (the clock's work_timeout_s)"
+            )
 
     def _start_round(self) -> None:
         """Tick the next round's nodes (lock held)."""
@@ -452,6 +479,8 @@ class ClockRunner:
         )
         self._tick, self._who, self._dones = tick, who, {}
         self._round_started = time.monotonic()
+        if self._heard:
+            self._heard = {}
         self._collecting = True
         self._publish_tick(tick, self.participants if sync else who)
 
@@ -468,6 +497,36 @@ class ClockRunner:
             except Exception as err:  # the planner's faults, a closed session: the loop raises
                 self._running, self._failure = False, err
                 self._queue.put(("failed", "", b""))
+
+    def _on_working(self, sample: zenoh.Sample) -> None:
+        """Zenoh's callback for a progress beat (:class:`Working`): a node ticked for the round
+        under way, and not done with it, is still working on it. Anything else is logged and
+        dropped; a beat never moves the rounds."""
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        try:
+            env = codec.decode_envelope(payload)
+            if env.run != self.run_id:
+                raise SchemaError(f"beat of run {env.run!r} on this run's key")
+            beat = codec.decode_body(env, Working)
+            if env.src != beat.node or key.rsplit("/", 1)[-1] != beat.node:
+                raise SchemaError(f"beat for {beat.node!r} from {env.src!r} on {key}")
+        except SchemaError as err:
+            log.warning("clock: dropping invalid beat on %s: %s", key, err)
+            return
+        with self._lock:
+            if (
+                self._collecting
+                and beat.round == self._tick.round
+                and beat.node in self._who
+                and beat.node not in self._dones
+            ):
+                self._heard[beat.node] = time.monotonic()
+                log.debug(
+                    "clock: %s still working on round %d (%.1f s)",
+                    beat.node,
+                    beat.round,
+                    beat.busy_s,
+                )
 
     def _take_done(self, key: str, payload: bytes) -> None:
         """Keep a valid ``Done`` of the round under way from a node ticked for it (lock held);

@@ -42,11 +42,12 @@ from typing import Any
 import zenoh
 from pydantic import BaseModel
 
-from bus_schemas import Done, Stop, Tick, TickLog, codec, keys
+from bus_schemas import Done, Stop, Tick, TickLog, Working, codec, keys
 from bus_schemas.envelope import RawEnvelope
 from bus_schemas.errors import SchemaError
 from core.behaviour import Behaviour
 from core.errors import NodeTimeout, ProtocolError
+from kernel.heartbeat import Heartbeat, beat_interval
 
 __all__ = ["NodeContext", "BusNode"]
 
@@ -82,6 +83,10 @@ class NodeContext:
     publishers: Mapping[str, tuple[str, ...]] | None = None
     """Publisher -> the run-relative key expressions it owns; ``None``: any participant (or the
     clock) may publish on any key."""
+    heartbeat: Heartbeat | None = None
+    """The process's heartbeat thread, shared by its nodes (:mod:`kernel.heartbeat`); ``None``:
+    the node runs one of its own, beating every :func:`~kernel.heartbeat.beat_interval` of
+    ``round_timeout_s``."""
 
 
 class _StopRequested(Exception):
@@ -137,6 +142,10 @@ class BusNode:
         )
         self._over = False
         self._failure: BaseException | None = None
+        # (round, t, began) of the round this node is answering, for the heartbeat's thread
+        # (one tuple, written whole); the beats' own sequence numbers (only that thread's)
+        self._working: tuple[int, int, float] | None = None
+        self._beat_seq = 0
 
     observer = False
     """Whether the node observes every round (:attr:`kernel.clock.ClockSpec.observers`: the
@@ -191,8 +200,10 @@ class BusNode:
             )
         )
         token = session.liveliness().declare_token(keys.full(self.run_id, keys.alive(self.name)))
+        heartbeat = self.ctx.heartbeat or Heartbeat(beat_interval(self.ctx.round_timeout_s))
         try:
-            return self._serve()
+            with heartbeat.watching(self):
+                return self._serve()
         finally:
             self._over = True  # no round after this; one under way stops waiting
             self._interrupt_round("clock_gone")
@@ -204,6 +215,30 @@ class BusNode:
             for sub in data:
                 sub.undeclare()
             self._declared = declared  # keep the declarations alive until the session closes
+
+    @property
+    def working(self) -> tuple[int, int, float] | None:
+        """``(round, t, began)`` of the round under way that this node answers, ``None`` between
+        rounds (:class:`kernel.heartbeat.Worker`)."""
+        return self._working
+
+    def beat(self, round_: int, t: int, busy_s: float) -> None:
+        """Tell the clock this node is still working on round ``round_`` (the heartbeat's
+        thread calls it while a round lasts longer than a beat: :mod:`kernel.heartbeat`)."""
+        payload = codec.encode(
+            run=self.run_id,
+            src=self.name,
+            seq=self._beat_seq,
+            round=round_,
+            t=t,
+            body=Working(round=round_, node=self.name, busy_s=busy_s),
+        )
+        self._beat_seq += 1
+        self.ctx.session.put(
+            keys.full(self.run_id, keys.working(self.name)),
+            payload,
+            encoding=zenoh.Encoding(codec.ENCODING),
+        )
 
     def _serve(self) -> int:
         while True:
@@ -298,6 +333,17 @@ class BusNode:
         if not (answers or self.observer):
             self.on_tick(tick)  # sparse rounds: nothing to collect, no timer due, no Done
             return
+        if not answers:
+            self._work(tick, answers=False)  # an observer between sync rounds: no one waits
+            return
+        self._working = (tick.round, tick.t, time.monotonic())
+        try:
+            self._work(tick, answers=True)
+        finally:
+            self._working = None
+
+    def _work(self, tick: Tick, *, answers: bool) -> None:
+        """Round ``tick``: collect, handle, publish, and answer (``Done``) if ``answers``."""
         self.behaviour.begin_round(tick.round, tick.t)
         self.on_tick(tick)
         inbox = self._collect(tick)

@@ -34,6 +34,7 @@ from core.errors import ConfigError, NodeFault, SchemaError
 from core.time import to_units
 from kernel.bus import DEFAULT_LISTEN, Session, is_put, open_client
 from kernel.clock import ClockRunner
+from kernel.heartbeat import Heartbeat, beat_interval
 from kernel.lifetime import die_with_parent
 from kernel.router_process import RouterProcess
 from runtime.affinity import (
@@ -677,6 +678,7 @@ def _threads_on(
     aborted = threading.Event()
 
     gate = threading.BoundedSemaphore(_STARTING_AT_ONCE)
+    heartbeat = Heartbeat(beat_interval(scenario.clock.round_timeout_s))  # one for all nodes
 
     def run_node(name: str) -> None:
         try:
@@ -686,7 +688,7 @@ def _threads_on(
                     clock.append(runner)
                 else:
                     options = {"out": str(out), "engine": engine}
-                    node = bus_node(scenario, name, run_id, session, options)
+                    node = bus_node(scenario, name, run_id, session, options, heartbeat=heartbeat)
             if name == "clock":
                 result["clock"] = runner.run()
                 if runner.error:

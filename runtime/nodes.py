@@ -10,6 +10,7 @@ from typing import Any
 from core.time import to_ticks
 from kernel.bus import Session
 from kernel.clock import ClockRunner, ClockSpec
+from kernel.heartbeat import Heartbeat
 from kernel.node import BusNode, NodeContext
 from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
@@ -26,8 +27,11 @@ def bus_node(
     run_id: str,
     session: Session,
     options: dict[str, Any] | None = None,
+    *,
+    heartbeat: Heartbeat | None = None,
 ) -> BusNode:
-    """Node ``name`` of ``scenario`` as a bus participant of run ``run_id`` on ``session``."""
+    """Node ``name`` of ``scenario`` as a bus participant of run ``run_id`` on ``session``,
+    beating on ``heartbeat`` (shared by a process's nodes) or on a heartbeat of its own."""
     ctx = NodeContext(
         name,
         run_id,
@@ -36,6 +40,7 @@ def bus_node(
         round_timeout_s=scenario.clock.round_timeout_s,
         options=dict(options or {}),
         publishers=publishers(scenario),
+        heartbeat=heartbeat,
     )
     if name == HISTORIAN:
         return HistorianNode(ctx, scenario_name=scenario.name, seed=scenario.seed)
@@ -50,6 +55,7 @@ def clock_spec(scenario: Scenario) -> ClockSpec:
         time_unit=scenario.time_unit,
         round_timeout_s=scenario.clock.round_timeout_s,
         startup_timeout_s=scenario.clock.startup_timeout_s,
+        work_timeout_s=scenario.clock.work_timeout_s,
         max_microsteps=scenario.clock.max_microsteps,
         max_rounds=scenario.clock.max_rounds,
         may_drop=frozenset(scenario.clock.may_drop),

@@ -133,13 +133,21 @@ class ClockConfig(BaseModel):
     round_timeout_s: float = Field(
         default=10.0,
         gt=0,
-        description="a participant silent this long in a round is a fault (round 0, where nodes "
-        "do their one-off work, has startup_timeout_s)",
+        description="a participant silent this long in a round (no answer, no progress "
+        "heartbeat) is a fault; round 0, where nodes do their one-off work, has "
+        "startup_timeout_s",
     )
     startup_timeout_s: float = Field(
         default=120.0,
         gt=0,
         description="time for every participant to come alive, and then to answer round 0",
+    )
+    work_timeout_s: float = Field(
+        default=3600.0,
+        gt=0,
+        description="the longest a participant may work on one round: a node busy with a long "
+        "computation (the agent deciding) sends a progress heartbeat, so round_timeout_s judges "
+        "only silence, and this ends a node that computes forever",
     )
     max_microsteps: int = Field(
         default=10_000, gt=0, description="rounds allowed at one instant before it is an error"

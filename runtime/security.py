@@ -1,12 +1,13 @@
 """A run's security from its scenario (issue 19): who may put, subscribe and show a token where.
 
 :func:`grants` derives each identity's :class:`~kernel.security.Grant` from the scenario: a node
-may publish only the keys it owns (:func:`runtime.ownership.publishers`) and its own
-``clock/done/<node>``, subscribe only to what its role reads (:func:`runtime.ownership.readers`)
-and its ticks (``clock/tick/<node>``) and the stop (the historian: the clock's log,
-``clock/log``, instead), declare a liveliness token only under its own name and watch only
-the clock's. The clock publishes the ticks, its log, the stop and the requests it stamps, and
-listens to ``clock/done/*`` and ``ops/inject``. ``wncs inject`` may put exactly ``ops/inject``
+may publish only the keys it owns (:func:`runtime.ownership.publishers`), its own
+``clock/done/<node>`` and its progress beats (``clock/working/<node>``), subscribe only to what
+its role reads (:func:`runtime.ownership.readers`) and its ticks (``clock/tick/<node>``) and the
+stop (the historian: the clock's log, ``clock/log``, instead), declare a liveliness token only
+under its own name and watch only the clock's. The clock publishes the ticks, its log, the stop
+and the requests it stamps, and listens to ``clock/done/*``, ``clock/working/*`` and
+``ops/inject``. ``wncs inject`` may put exactly ``ops/inject``
 (and learn that the clock listens there); ``dashboard`` may put exactly ``ops/inject`` too, and
 read the run (it shows it); ``launcher`` (``wncs run``'s own session, for its progress line)
 reads the clock's log and the stop and watches who is alive; ``threads``, the threads engine's
@@ -82,7 +83,7 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
     out: dict[str, Grant] = {}
     for name in scenario.participants():
         out[name] = Grant(
-            puts=full(*owned[name], keys.done(name)),
+            puts=full(*owned[name], keys.done(name), keys.working(name)),
             # the ticks addressed to it (clock/tick/<node>) and the stop; an observer (the
             # historian) the clock's log of every tick instead (clock/log, the stop last)
             subscribes=full(
@@ -95,7 +96,7 @@ def grants(scenario: Scenario, run_id: str) -> dict[str, Grant]:
         )
     out[CLOCK] = Grant(
         puts=full(*owned[CLOCK], keys.tick_log(), f"{keys.tick()}/*", keys.stop()),
-        subscribes=full(keys.done_all(), keys.inject()),
+        subscribes=full(keys.done_all(), keys.working_all(), keys.inject()),
         tokens=full(keys.alive(CLOCK)),
         watches=full(keys.alive_all()),
         matches=full("**"),

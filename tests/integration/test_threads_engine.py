@@ -19,6 +19,7 @@ from core.errors import ConfigError
 from core.record import summarize
 from kernel.bus import open_client
 from kernel.clock import SYNC_ROUNDS, ClockRunner
+from kernel.node import BusNode
 from runtime.direct import simulate
 from runtime.historian import HistorianNode
 from runtime.history import connect, messages_digest
@@ -357,8 +358,8 @@ def test_a_lagging_historian_records_every_round_before_it_takes_the_stop(tmp_pa
 
 def _slow_in(round_to_slow: str, clock_timed_it: threading.Event):
     """An operator that holds round 0 (``"first"``) or the first later round it takes part in
-    (``"later"``) until the clock has timed that round past ``round_timeout_s``: a node's
-    one-off work, or a hang."""
+    (``"later"``) until the clock has timed that round past a limit (:func:`_clock_timing`):
+    a node's one-off work, a long computation, or a hang."""
 
     class Slow(OperatorBehaviour):
         def begin_round(self, round_: int, t: int) -> None:
@@ -371,9 +372,10 @@ def _slow_in(round_to_slow: str, clock_timed_it: threading.Event):
     return Slow
 
 
-def _clock_timing(monkeypatch) -> threading.Event:
-    """Set once the clock has checked a round's time after ``round_timeout_s`` had passed (the
-    check itself may then end the run)."""
+def _clock_timing(monkeypatch, past: float = 0.5) -> threading.Event:
+    """Set once the clock has checked the time of a round that had lasted ``past`` seconds
+    (the check itself may then end the run): the slow node's hold is derived from the clock's
+    own progress, never from a guess of how long it takes."""
     timed = threading.Event()
     check = ClockRunner._check_round_time
 
@@ -381,7 +383,7 @@ def _clock_timing(monkeypatch) -> threading.Event:
         try:
             check(self)
         finally:
-            if time.monotonic() - self._round_started >= self.spec.round_timeout_s:
+            if self._collecting and time.monotonic() - self._round_started >= past:
                 timed.set()
 
     monkeypatch.setattr(ClockRunner, "_check_round_time", checked)
@@ -392,13 +394,19 @@ def _short_round_timeout(data) -> None:
     data["clock"] = {**data.get("clock", {}), "round_timeout_s": 0.5, "startup_timeout_s": 60}
 
 
+def _silent(monkeypatch) -> None:
+    """Nodes that never say they are working (a node whose tick never reached its round)."""
+    monkeypatch.setattr(BusNode, "beat", lambda self, round_, t, busy_s: None)
+
+
 def test_round_0_is_timed_as_start_up_and_later_rounds_by_the_round_timeout(
     tmp_path, stand_in, monkeypatch
 ):
     """Round 0, where nodes do their one-off work (a gateway's predicted delay distributions
-    take seconds at 100 loops), has ``startup_timeout_s``; a node as slow in a later round is a
+    take seconds at 100 loops), has ``startup_timeout_s``; a node as silent in a later round is a
     fault named by the clock."""
     scenario = write_variant(tmp_path, BENCHMARK, "short.yaml", _short_round_timeout)
+    _silent(monkeypatch)
     timed = _clock_timing(monkeypatch)
     stand_in("operator", _slow_in("first", timed))
     res = launch(scenario, tmp_path / "first", engine="threads")
@@ -410,3 +418,45 @@ def test_round_0_is_timed_as_start_up_and_later_rounds_by_the_round_timeout(
     assert res.code == 3  # a fault stopped the run
     assert "node(s) ['operator'] did not answer round" in res.error
     assert "within 0.5 s" in res.error
+
+
+def test_a_node_working_long_past_the_round_timeout_is_not_a_fault(tmp_path, stand_in, monkeypatch):
+    """Thinking is not silence: a node that works on a later round for six times the round
+    timeout says so (its progress beats), the run completes, and nothing of virtual time moved:
+    its history is the quick run's, message for message."""
+    scenario = write_variant(tmp_path, BENCHMARK, "short.yaml", _short_round_timeout)
+    quick = launch(scenario, tmp_path / "quick", engine="threads")
+    assert quick.code == 0, quick.error
+    beats: list[tuple[str, int, float]] = []
+    beat = BusNode.beat
+
+    def counted(self: BusNode, round_: int, t: int, busy_s: float) -> None:
+        beats.append((self.name, round_, busy_s))
+        beat(self, round_, t, busy_s)
+
+    monkeypatch.setattr(BusNode, "beat", counted)
+    stand_in("operator", _slow_in("later", _clock_timing(monkeypatch, past=3.0)))
+    res = launch(scenario, tmp_path / "slow", engine="threads")
+    assert res.code == 0, res.error
+    operator = [b for b in beats if b[0] == "operator"]
+    assert len({r for _, r, _ in operator}) == 1 and max(b[2] for b in operator) >= 2.5
+    assert messages_digest(tmp_path / "slow" / "history.sqlite") == messages_digest(
+        tmp_path / "quick" / "history.sqlite"
+    )
+
+
+def test_a_node_that_works_past_the_work_timeout_is_a_fault_naming_it(
+    tmp_path, stand_in, monkeypatch
+):
+    """``clock.work_timeout_s`` ends a node that computes forever, although it beats."""
+
+    def edit(data) -> None:
+        _short_round_timeout(data)
+        data["clock"]["work_timeout_s"] = 1.5
+
+    scenario = write_variant(tmp_path, BENCHMARK, "work.yaml", edit)
+    stand_in("operator", _slow_in("later", _clock_timing(monkeypatch, past=1.5)))
+    res = launch(scenario, tmp_path / "work", engine="threads")
+    assert res.code == 3
+    assert "node(s) ['operator'] still working on round" in res.error
+    assert "after 1.5 s (the clock's work_timeout_s)" in res.error

@@ -25,6 +25,7 @@ from bus_schemas import (
     Stop,
     Tick,
     Timing,
+    Working,
     codec,
     keys,
 )
@@ -47,6 +48,7 @@ BODIES = [
         next_time=None,
     ),
     Stop(ok=False, reason="node 'x' left", round=9, t=10, dropped_invalid={"a/b": 2}),
+    Working(round=3, node="wncsca", busy_s=2.5),
 ]
 
 
@@ -132,6 +134,21 @@ def test_a_tick_with_digests_must_announce_them_for_its_counts():
         )
 
 
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        ({"round": -1, "node": "a", "busy_s": 1.0}, "round"),
+        ({"round": 1.0, "node": "a", "busy_s": 1.0}, "round"),  # rounds are integers
+        ({"round": 1, "node": "a", "busy_s": -0.5}, "busy_s"),
+        ({"round": 1, "node": "a", "busy_s": math.inf}, "busy_s"),
+        ({"round": 1, "node": "a"}, "busy_s"),
+    ],
+)
+def test_a_progress_heartbeat_is_refused_when_malformed(body, fragment):
+    with pytest.raises(SchemaError, match=fragment):
+        codec.validate_body(body, Working)
+
+
 def test_schema_error_is_a_value_error():
     with pytest.raises(ValueError):
         codec.decode(b"", Sample)
@@ -141,6 +158,8 @@ BUILT = [
     keys.tick(),
     keys.done("n1"),
     keys.done_all(),
+    keys.working("n1"),
+    keys.working_all(),
     keys.stop(),
     keys.alive("n1"),
     keys.alive_all(),

@@ -62,11 +62,19 @@ def test_each_node_may_put_only_the_keys_it_owns():
     assert _p("plant/reactor/actuator/F_out") in g["network"].puts
     assert not any("actuator" in k for k in g["reactor"].puts)
     assert g["reactor"].puts == tuple(
-        sorted([_p("clock/done/reactor"), _p("plant/reactor/sensor/*"), _p("plant/reactor/state")])
+        sorted(
+            [
+                _p("clock/done/reactor"),
+                _p("clock/working/reactor"),
+                _p("plant/reactor/sensor/*"),
+                _p("plant/reactor/state"),
+            ]
+        )
     )
     assert g["level_controller"].tokens == (_p("alive/level_controller"),)
     for name in ("reactor", "network", "historian", "operator"):
-        assert not any(k.startswith(_p("clock/")) for k in g[name].puts if "done" not in k)
+        own = {_p(f"clock/done/{name}"), _p(f"clock/working/{name}")}  # its answers, its beats
+        assert not any(k.startswith(_p("clock/")) for k in g[name].puts if k not in own)
     for name in ("reactor", "network", "operator"):
         assert {_p(f"clock/tick/{name}"), _p("clock/stop")} <= set(g[name].subscribes), name
         assert _p("clock/log") not in g[name].subscribes
@@ -75,7 +83,7 @@ def test_each_node_may_put_only_the_keys_it_owns():
     assert _p("clock/log") in g["clock"].puts and _p("clock/log") in g[LAUNCHER].subscribes
     assert g[INJECT] == Grant(puts=(_p("ops/inject"),), matches=(_p("ops/inject"),))
     assert g[DASHBOARD].puts == (_p("ops/inject"),)
-    assert g["historian"].puts == (_p("clock/done/historian"),)
+    assert g["historian"].puts == (_p("clock/done/historian"), _p("clock/working/historian"))
 
 
 def test_the_threads_engines_session_may_do_what_its_nodes_and_clock_may_and_no_more():
