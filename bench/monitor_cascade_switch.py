@@ -53,6 +53,7 @@ from core.time import to_ticks
 from plants.cascade_ct import CascadeCTParams, SampledCascadeCT, sampled
 from runtime.direct import simulate
 from runtime.scenario import Scenario, parse_scenario
+from runtime.specs import run_shape
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("cascade_routine", "cascade_routine_primary")
@@ -70,7 +71,9 @@ def base_data(name: str) -> dict[str, Any]:
 
 def window_variance(scenario: Scenario, rec: Any) -> float:
     """Variance of the control error ``r1 - y1`` over the monitor's window (as it computes it)."""
-    series = RunSeries(scenario, LOOP, [f"{LOOP}.sp"], start=to_ticks(START), window=WINDOW)
+    series = RunSeries(
+        run_shape(scenario), LOOP, [f"{LOOP}.sp"], start=to_ticks(START), window=WINDOW
+    )
     feed_run_record(rec, series, until=to_ticks(scenario.end_time))
     data, _ = series.table(min_rows=WINDOW)
     return float(np.var(data[f"{LOOP}.sp"] - data[LOOP]))
@@ -79,7 +82,11 @@ def window_variance(scenario: Scenario, rec: Any) -> float:
 def assessment(scenario: Scenario, rec: Any) -> dict[str, Any]:
     """The monitor's assessment of the simple-feedback run (the node's settings)."""
     series = RunSeries(
-        scenario, LOOP, [f"{LOOP}.sp", *SECONDARIES], start=to_ticks(START), window=WINDOW
+        run_shape(scenario),
+        LOOP,
+        [f"{LOOP}.sp", *SECONDARIES],
+        start=to_ticks(START),
+        window=WINDOW,
     )
     feed_run_record(rec, series, until=to_ticks(scenario.end_time))
     specs = [SecondarySpec(name=n, d1=DELAYS[0], d2=DELAYS[1]) for n in SECONDARIES]

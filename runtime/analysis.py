@@ -30,7 +30,7 @@ from agents.wncsca.jitter import loop_margins
 from agents.wncsca.plots import fig10
 from gateway.carrier import PathCarrier
 from runtime.direct import loop_model
-from runtime.specs import carrier_spec
+from runtime.specs import agent_spec, carrier_spec
 
 __all__ = ["analyze", "parse_delays"]
 
@@ -87,7 +87,7 @@ def _energy(
     """Per WSN carrying loops, the projected network lifetime under ``periods`` against the
     benchmark periods over the network's initial routes (:meth:`Coordinator.energy`, as the
     agent computes it after a negotiation); the entries of ``summary.json``'s ``wncsca.energy``."""
-    core = Coordinator(scenario, model, config)
+    core = Coordinator(agent_spec(scenario, config=config), model)
     core.control_periods = dict(periods)
     out = []
     for name in scenario.carriers():

@@ -9,21 +9,21 @@ plants, controllers, networks, the coordination agent and the monitor. The recor
 the messages in the historian's order by the same :class:`~runtime.records.RecordBuilder` that
 rebuilds a bus run's record from its history.
 
-The coordination agent is handed a simulator of its loops (:mod:`agents.wncsca.trials`) that
-runs on this same engine: :func:`simulate` itself.
+The coordination agent is handed a simulator of its loops (:class:`runtime.specs.ScenarioSimulator`)
+that runs on this same engine: :func:`simulate` itself.
 """
 
 from __future__ import annotations
 
 import time
 
-from agents.wncsca import trials
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
 from agents.wncsca.model import LoopModel
 from core.behaviour import Behaviour
 from core.record import RunRecord
 from core.time import to_ticks
+from runtime import specs
 from runtime.engine import DirectEngine, Message
 from runtime.records import RecordBuilder
 from runtime.scenario import HISTORIAN, NODE_KINDS, Scenario
@@ -85,9 +85,9 @@ def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
 
 def loop_model(scenario: Scenario, config: WncscaConfig | None = None) -> LoopModel:
     """The coordination agent's model of ``scenario``'s loops, simulated on this engine."""
-    return trials.loop_model(scenario, config, simulate=simulate)
+    return specs.loop_model(scenario, config, simulate=simulate)
 
 
 def coordinator(scenario: Scenario, config: WncscaConfig | None = None) -> Coordinator:
     """The coordination agent of ``scenario``, its model simulated on this engine."""
-    return trials.coordinator(scenario, config, simulate=simulate)
+    return specs.coordinator(scenario, config, simulate=simulate)

@@ -42,9 +42,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from agents.monitor.behaviour import MonitorBehaviour
 from agents.monitor.config import MonitorNodeConfig
 from agents.operator.behaviour import OperatorBehaviour
-from agents.wncsca import behaviour as wncsca_behaviour
 from agents.wncsca.config import MODES, WncscaConfig
 from agents.wncsca.links import link_groups
+from agents.wncsca.spec import ClosedLoopSpec, Trial
 from bus_schemas import Setpoint, keys
 from controllers.behaviour import ControllerBehaviour
 from controllers.feedforward import SteadyStateFeedforward
@@ -74,11 +74,13 @@ from plants import registry
 from plants.behaviour import PlantBehaviour
 from runtime.overrides import Override, apply_overrides, parse_override
 from runtime.specs import (
+    agent_behaviour,
     controller_spec,
     monitor_spec,
     network_spec,
     operator_spec,
     plant_spec,
+    run_shape,
 )
 from runtime.yaml_positions import field_line, message_path, read_yaml
 
@@ -113,6 +115,11 @@ threads engine's session, routers joining each other), whose credentials and gra
 that name would take over."""
 
 _C = TypeVar("_C", bound=BaseModel)
+
+AGENT_NETWORK = "wncsca_model_network"
+AGENT_OPERATOR = "wncsca_model_operator"
+"""The wired network and the operator of the agent's closed-loop model
+(:meth:`Scenario.agent_model`)."""
 
 
 _STRICT = ConfigDict(frozen=True, extra="forbid")
@@ -426,7 +433,7 @@ NODE_KINDS: Registry[Behaviour] = Registry(
         Kind("network", NetworkNodeConfig, BehaviourBuild(NetworkBehaviour, network_spec)),
         Kind("gateway", GatewayNodeConfig, BehaviourBuild(NetworkBehaviour, network_spec)),
         Kind("operator", OperatorNodeConfig, BehaviourBuild(OperatorBehaviour, operator_spec)),
-        Kind("agent", WncscaConfig, wncsca_behaviour.build, "the coordination agent"),
+        Kind("agent", WncscaConfig, agent_behaviour, "the coordination agent"),
         Kind("monitor", MonitorNodeConfig, BehaviourBuild(MonitorBehaviour, monitor_spec)),
     ],
 )
@@ -761,7 +768,7 @@ class Scenario(BaseModel):
         self._check_agent()
         for name, node in self.nodes.items():
             if isinstance(node, MonitorNodeConfig):
-                node.check(self, name)  # the loop and columns it assesses exist
+                node.check(run_shape(self), name)  # the loop and columns it assesses exist
                 if self.loops[node.loop].sensor is None:
                     raise ValueError(
                         f"nodes.{name}.loop: loop {node.loop!r} is actuator-only (no samples)"
@@ -836,7 +843,9 @@ class Scenario(BaseModel):
         if cfg is None or cfg.links is None:
             return
         try:
-            link_groups(self, self.multi_loop_law, cfg.links.analysis)
+            link_groups(
+                self.links, self.multi_loop_law, cfg.links.analysis, tau_s=self.multi_loop_tau_s
+            )
         except ValueError as err:
             raise ValueError(f"nodes.{agent}.links: {err}") from err
 
@@ -1000,6 +1009,10 @@ class Scenario(BaseModel):
         """The plant nodes by name."""
         return self.nodes_of(PlantNodeConfig)
 
+    def controllers(self) -> dict[str, ControllerNodeConfig]:
+        """The controller nodes by name."""
+        return self.nodes_of(ControllerNodeConfig)
+
     def carriers(self) -> list[str]:
         """The nodes that carry loops: wired networks and WSN gateways, sorted."""
         return sorted(self.nodes_of(NetworkNodeConfig) | self.nodes_of(GatewayNodeConfig))
@@ -1060,6 +1073,70 @@ class Scenario(BaseModel):
     def participants(self) -> list[str]:
         """Every node that takes part in clock rounds: the scenario's nodes and the historian."""
         return sorted([*self.nodes, HISTORIAN])
+
+    def agent_model(self, spec: ClosedLoopSpec) -> Scenario:
+        """The coordination agent's closed-loop model (:func:`runtime.specs.closed_loop_spec`)
+        as a scenario of its own: this scenario's plants and controllers of the judged loops,
+        each loop on one wired network of no delay (no radio nodes), an operator for the
+        spec's steps, at the benchmark periods; validated here, once."""
+        loops = {
+            n: self.loops[n].model_copy(
+                update={
+                    "network": AGENT_NETWORK,
+                    "sensor_node": None,
+                    "actuator_node": None,
+                    "tau_d": 0.0,
+                    "tau_a": 0.0,
+                }
+            )
+            for n in spec.names
+        }
+        nodes: dict[str, Any] = {
+            n: cfg
+            for n, cfg in self.nodes.items()
+            if n in spec.plants or n in {lp.controller for lp in spec.loops.values()}
+        }
+        nodes[AGENT_NETWORK] = NetworkNodeConfig(kind="network")
+        nodes[AGENT_OPERATOR] = OperatorNodeConfig(kind="operator")
+        return Scenario(
+            name=spec.name,
+            time_unit=spec.time_unit,
+            end_time=spec.end_time,
+            seed=spec.seed,
+            nodes=nodes,
+            loops=loops,
+            setpoints=[
+                SetpointChange(t=s.t, loop=s.loop, value=s.value, announce=s.announce)
+                for s in spec.steps
+            ],
+            disturbances=[],
+        )
+
+    def trial(self, trial: Trial) -> Scenario:
+        """This agent model (:meth:`agent_model`) with one trial's periods, delays, steps, end
+        and delay traces (only those fields replaced: the trial's values are checked by the
+        agent, :meth:`agents.wncsca.model.LoopModel.evaluate`)."""
+        loops = {
+            name: lp.model_copy(update={"tau_s": trial.periods[name], "tau_d": trial.delays[name]})
+            for name, lp in self.loops.items()
+        }
+        template = self.setpoints[0]
+        update: dict[str, Any] = {
+            "loops": loops,
+            "setpoints": [
+                template.model_copy(
+                    update={"t": s.t, "loop": s.loop, "value": s.value, "announce": s.announce}
+                )
+                for s in trial.steps
+            ],
+            "end_time": trial.end_time,
+        }
+        if trial.traces is not None:
+            network = NetworkNodeConfig.model_validate(
+                {"kind": "network", "traces": dict(trial.traces)}
+            )
+            update["nodes"] = {**self.nodes, AGENT_NETWORK: network}
+        return self.model_copy(update=update)
 
     def with_loops(
         self,

@@ -5,24 +5,46 @@ A behaviour takes what it needs as a frozen spec (:class:`~plants.behaviour.Plan
 :class:`~agents.operator.behaviour.OperatorSpec`, :class:`~agents.monitor.behaviour.MonitorSpec`)
 instead of the whole :class:`~runtime.scenario.Scenario`, so it neither re-derives the scenario's
 view nor depends on its shape. The node kinds' builds (:data:`runtime.scenario.NODE_KINDS`) pass
-a node's spec to its behaviour. Not cut yet: two cores still read the scenario they are given
-(duck-typed, never imported) when they are built into a node's spec: the monitor's
-``agents.monitor.run_data.RunSeries`` and the agent's ``agents.wncsca.coordinator.Coordinator``
-(built by the agent kind's own build). A network's paths take a
-:class:`~gateway.carrier.CarrierSpec`.
+a node's spec to its behaviour. A network's paths take a :class:`~gateway.carrier.CarrierSpec`.
+
+The coordination agent takes an :class:`~agents.wncsca.spec.AgentSpec` (:func:`agent_spec`):
+its judged loops as a :class:`~agents.wncsca.spec.ClosedLoopSpec`, the networks and links it
+governs; its trials run through a :class:`ScenarioSimulator`, which writes each trial as a
+scenario (:meth:`runtime.scenario.Scenario.agent_model`, :meth:`~runtime.scenario.Scenario.trial`)
+and runs it on the engine it is handed (the direct engine's ``simulate``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import math
 from typing import TYPE_CHECKING, Any
 
 from agents.monitor.behaviour import MonitorSpec
+from agents.monitor.columns import RunLoop, RunShape
 from agents.monitor.run_data import RunSeries
 from agents.operator.behaviour import DisturbanceAt, ModeAt, OperatorSpec, SetpointAt
+from agents.wncsca.behaviour import WncscaBehaviour
+from agents.wncsca.config import WncscaConfig
+from agents.wncsca.coordinator import Coordinator
+from agents.wncsca.links import link_groups
+from agents.wncsca.model import LoopModel
+from agents.wncsca.spec import (
+    AgentSpec,
+    ClosedLoopSpec,
+    JudgedLoop,
+    JudgedPlant,
+    LinkSpec,
+    Step,
+    Trial,
+)
+from agents.wncsca.trials import Trials
 from controllers.behaviour import ControllerSpec
 from controllers.registry import uses_feedforward
 from core.errors import ConfigError
+from core.record import RunRecord, Simulate
 from core.time import to_ticks
 from gateway.behaviour import NetworkSpec
 from gateway.carrier import CarrierSpec, PathCarrier
@@ -32,11 +54,19 @@ if TYPE_CHECKING:
     from runtime.scenario import Scenario
 
 __all__ = [
+    "agent_config",
+    "closed_loop_spec",
+    "agent_spec",
+    "ScenarioSimulator",
+    "loop_model",
+    "coordinator",
+    "agent_behaviour",
     "carrier_spec",
     "path_hops",
     "plant_spec",
     "controller_spec",
     "network_spec",
+    "run_shape",
     "monitor_spec",
     "operator_spec",
 ]
@@ -129,16 +159,30 @@ def network_spec(scenario: Scenario, name: str) -> NetworkSpec:
     )
 
 
+def run_shape(scenario: Scenario) -> RunShape:
+    """What the monitor reads of a run of ``scenario``: its loops (sampling period, set point
+    and where the controller reads it), its plants' states and its end."""
+    return RunShape(
+        loops={
+            n: RunLoop(tau_s=lp.tau_s, setpoint=lp.setpoint, setpoint_key=scenario.setpoint_key(n))
+            for n, lp in scenario.loops.items()
+        },
+        plant_states={
+            n: tuple(cfg.build().state_names) for n, cfg in sorted(scenario.plants().items())
+        },
+        end_time=scenario.end_time,
+    )
+
+
 def monitor_spec(scenario: Scenario, name: str) -> MonitorSpec:
     """Monitor node ``name``: its configuration and the window of the columns it assesses."""
     cfg = scenario.nodes[name]
+    run = run_shape(scenario)
     try:
-        cfg.check(scenario, name)
+        cfg.check(run, name)
     except ValueError as err:
         raise ConfigError(str(err)) from err
-    series = RunSeries(
-        scenario, cfg.loop, cfg.columns(), start=to_ticks(cfg.start), window=cfg.window
-    )
+    series = RunSeries(run, cfg.loop, cfg.columns(), start=to_ticks(cfg.start), window=cfg.window)
     return MonitorSpec(cfg, series, end=to_ticks(scenario.end_time), time_unit=scenario.time_unit)
 
 
@@ -154,3 +198,173 @@ def operator_spec(scenario: Scenario, name: str) -> OperatorSpec:
             DisturbanceAt(to_ticks(d.t), d.plant, d.input, d.value) for d in scenario.disturbances
         ),
     )
+
+
+def agent_config(scenario: Scenario) -> WncscaConfig:
+    """The configuration of the scenario's agent node, or the defaults if it has none (what
+    ``wncs analyze`` judges a scenario without an agent with)."""
+    name = scenario.agent_node()
+    return scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
+
+
+def closed_loop_spec(scenario: Scenario, config: WncscaConfig) -> ClosedLoopSpec:
+    """The agent's closed-loop model of ``scenario`` under ``config``'s test (default: the
+    scenario's set-point schedule and end): its judged loops
+    (:meth:`~runtime.scenario.Scenario.simulated_loops`), their plants and laws.
+
+    Raises
+    ------
+    ValueError
+        A test step names an unknown loop or falls after the test's end, or a judged loop has
+        no step (the agent judges a loop by the overshoot of its step).
+    """
+    names = scenario.simulated_loops()
+    if config.test is not None:
+        steps = tuple(Step(s.t, s.loop, s.value) for s in config.test.setpoints)
+        end_time = config.test.end_time
+    else:
+        steps = tuple(Step(s.t, s.loop, s.value, s.announce) for s in scenario.setpoints)
+        end_time = scenario.end_time
+    for i, step in enumerate(steps):
+        if step.loop not in names:
+            raise ValueError(
+                f"test.setpoints[{i}].loop: unknown loop {step.loop!r} (loops: {list(names)})"
+            )
+        if step.t > end_time:
+            raise ValueError(f"test.setpoints[{i}].t: {step.t} is after end_time {end_time}")
+    missing = [n for n in names if n not in {s.loop for s in steps}]
+    if missing:
+        raise ValueError(
+            f"test.setpoints: no set-point step for loop(s) {missing}; the agent judges a "
+            "loop by the overshoot of its step"
+        )
+    loops: dict[str, JudgedLoop] = {}
+    for n in names:
+        lp = scenario.loops[n]
+        law = scenario.controllers()[lp.controller].law
+        if lp.sensor is None or lp.actuator is None or lp.tau_s is None or lp.setpoint is None:
+            raise ValueError(f"loops.{n}: a judged loop measures and moves its plant")
+        loops[n] = JudgedLoop(
+            name=n,
+            plant=lp.plant,
+            sensor=lp.sensor,
+            actuator=lp.actuator,
+            controller=lp.controller,
+            law=law,
+            setpoint=float(lp.setpoint),
+            tau_s=float(lp.tau_s),
+            feedforward=scenario.feedforward(n) if uses_feedforward(law) else None,
+        )
+    controllers = {lp.controller for lp in loops.values()}
+    plants = {}
+    for p in sorted({lp.plant for lp in loops.values()}):
+        cfg = scenario.plants()[p]
+        plants[p] = JudgedPlant(
+            name=p,
+            model=cfg.build(),
+            x0=dict(cfg.x0),
+            u0=dict(cfg.u0),
+            max_step=cfg.max_step,
+            monitor_period=cfg.monitor_period,
+            noise=dict(cfg.noise),
+        )
+    what = {  # everything a trial's outcome depends on but its periods and delays
+        "plants": {p: scenario.nodes[p].model_dump() for p in plants},
+        "controllers": {c: scenario.nodes[c].model_dump() for c in sorted(controllers)},
+        "loops": {n: scenario.loops[n].model_dump() for n in names},
+        "steps": [dataclasses.asdict(s) for s in steps],
+        "end_time": end_time,
+        "seed": scenario.seed,
+    }
+    return ClosedLoopSpec(
+        name=f"{scenario.name}.wncsca_model",
+        time_unit=scenario.time_unit,
+        seed=scenario.seed,
+        end_time=end_time,
+        plants=plants,
+        loops=loops,
+        steps=steps,
+        fingerprint=hashlib.sha256(
+            json.dumps(what, sort_keys=True, default=str).encode()
+        ).hexdigest()[:16],
+    )
+
+
+def agent_spec(
+    scenario: Scenario, name: str | None = None, config: WncscaConfig | None = None
+) -> AgentSpec:
+    """What agent node ``name`` of ``scenario`` knows of its run (``name`` ``None``: the
+    scenario's agent, or one with the default configuration; ``config`` replaces the node's)."""
+    name = name or scenario.agent_node()
+    if config is None:
+        config = scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
+    groups = ()
+    if config.links:
+        groups = tuple(
+            link_groups(
+                scenario.links,
+                scenario.multi_loop_law,
+                config.links.analysis,
+                tau_s=scenario.multi_loop_tau_s,
+            )
+        )
+    return AgentSpec(
+        name=name or "wncsca",
+        config=config,
+        closed_loop=closed_loop_spec(scenario, config),
+        seed=scenario.seed,
+        carriers={n: carrier_spec(scenario, n) for n in scenario.carriers()},
+        loop_networks={n: lp.network for n, lp in scenario.loops.items()},
+        setpoints={
+            n: float(lp.setpoint) for n, lp in scenario.loops.items() if lp.setpoint is not None
+        },
+        links={
+            n: LinkSpec(network=lk.network, period=lk.period, delay=lk.delay)
+            for n, lk in scenario.links.items()
+        },
+        link_groups=groups,
+        loop_delays={n: lp.tau_d + lp.tau_a for n, lp in scenario.loops.items()},
+    )
+
+
+class ScenarioSimulator:
+    """The agent's :class:`~agents.wncsca.spec.Simulator` for a scenario: each trial of the
+    closed-loop spec written as a scenario (validated once, then only the trial's fields
+    replaced: :meth:`~runtime.scenario.Scenario.trial`) and run by ``simulate``."""
+
+    def __init__(self, scenario: Scenario, spec: ClosedLoopSpec, simulate: Simulate) -> None:
+        self.model = scenario.agent_model(spec)
+        self._simulate = simulate
+
+    def __call__(self, trial: Trial) -> RunRecord:
+        return self._simulate(self.model.trial(trial))
+
+
+def loop_model(
+    scenario: Scenario, config: WncscaConfig | None = None, *, simulate: Simulate
+) -> LoopModel:
+    """The agent's model of ``scenario`` (``config`` defaults to its agent's), its trials run
+    by ``simulate``."""
+    config = config or agent_config(scenario)
+    spec = closed_loop_spec(scenario, config)
+    return LoopModel(Trials(spec, ScenarioSimulator(scenario, spec, simulate)), config)
+
+
+def coordinator(
+    scenario: Scenario,
+    config: WncscaConfig | None = None,
+    *,
+    simulate: Simulate,
+    name: str | None = None,
+) -> Coordinator:
+    """The coordination agent of ``scenario`` (its node ``name``, default the scenario's agent),
+    its model's trials run by ``simulate``."""
+    spec = agent_spec(scenario, name, config)
+    simulator = ScenarioSimulator(scenario, spec.closed_loop, simulate)
+    return Coordinator(spec, LoopModel(Trials(spec.closed_loop, simulator), spec.config))
+
+
+def agent_behaviour(name: str, scenario: Scenario, simulate: Simulate) -> WncscaBehaviour:
+    """The agent kind's build (:data:`runtime.scenario.NODE_KINDS`): agent node ``name`` of
+    ``scenario``, its model's trials run by ``simulate``."""
+    return WncscaBehaviour(name, coordinator(scenario, simulate=simulate, name=name))

@@ -21,10 +21,11 @@ at or before the primary's sampling instant (:class:`agents.monitor.run_data.Run
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
-__all__ = ["SP_SUFFIX", "Column", "resolve_column"]
+__all__ = ["SP_SUFFIX", "RunLoop", "RunShape", "Column", "resolve_column"]
 
 SP_SUFFIX = ".sp"
 
@@ -40,20 +41,38 @@ class Column:
     state: str | None = None
 
 
-def _plant_states(scenario: Any) -> dict[str, tuple[str, ...]]:
-    return {n: tuple(cfg.build().state_names) for n, cfg in sorted(scenario.plants().items())}
+@dataclass(frozen=True)
+class RunLoop:
+    """A loop of a run as the monitor reads it."""
+
+    tau_s: float | None
+    """Its sampling period (time units; ``None``: it samples nothing)."""
+    setpoint: float | None
+    """Its set point at t = 0."""
+    setpoint_key: str
+    """Where its controller reads its set points (run-relative key)."""
 
 
-def resolve_column(scenario: Any, name: str) -> Column:
-    """The column ``name`` of a run of ``scenario`` (module docstring).
+@dataclass(frozen=True)
+class RunShape:
+    """What a run's columns are made of (:func:`runtime.specs.run_shape` computes it from the
+    scenario): its loops, its plants' states, its end."""
+
+    loops: Mapping[str, RunLoop]
+    plant_states: Mapping[str, tuple[str, ...]]
+    end_time: float
+
+
+def resolve_column(run: RunShape, name: str) -> Column:
+    """The column ``name`` of ``run`` (module docstring).
 
     Raises
     ------
     ValueError
         Unknown or ambiguous name, listing the run's columns.
     """
-    loops = scenario.loops
-    plants = _plant_states(scenario)
+    loops = run.loops
+    plants = run.plant_states
     hits: list[Column] = []
     if name in loops:
         hits.append(Column(name, "meas", loop=name))

@@ -60,6 +60,7 @@ from core.errors import ConfigError
 from core.time import to_ticks
 from runtime.history import read_meta
 from runtime.scenario import load_scenario
+from runtime.specs import run_shape
 
 __all__ = [
     "add_assess_arguments",
@@ -328,7 +329,9 @@ def _assess_run(
         raise ValueError(f"--window: must be >= 1 samples, got {window}")
     t_until = to_ticks(scenario.end_time if until is None else until)
     columns = ([setpoint] if setpoint else []) + [s.name for s in secondaries]
-    series = RunSeries(scenario, primary, columns, start=to_ticks(start or 0.0), window=window)
+    series = RunSeries(
+        run_shape(scenario), primary, columns, start=to_ticks(start or 0.0), window=window
+    )
     engine = "direct"
     if (run_dir / "history.sqlite").exists():
         engine = read_meta(run_dir / "history.sqlite").get("engine", "?")

@@ -23,11 +23,11 @@ state on its monitoring grid).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from agents.monitor.columns import resolve_column
+from agents.monitor.columns import RunShape, resolve_column
 
 __all__ = [
     "SecondarySpec",
@@ -219,18 +219,16 @@ class MonitorNodeConfig(BaseModel):
         """The columns the analysis reads besides the primary (set point, then secondaries)."""
         return ([f"{self.loop}.sp"] if self.setpoint else []) + [s.name for s in self.secondaries]
 
-    def check(self, scenario: Any, name: str) -> None:
-        """Refuse names that are not in ``scenario`` (``ValueError`` naming the field, e.g.
+    def check(self, run: RunShape, name: str) -> None:
+        """Refuse names that are not in ``run`` (``ValueError`` naming the field, e.g.
         ``nodes.mon.secondaries[0].name: 'reactor.Tj' is not a column of this run ...``)."""
         at = f"nodes.{name}"
-        if self.loop not in scenario.loops:
-            raise ValueError(
-                f"{at}.loop: unknown loop {self.loop!r} (loops: {sorted(scenario.loops)})"
-            )
+        if self.loop not in run.loops:
+            raise ValueError(f"{at}.loop: unknown loop {self.loop!r} (loops: {sorted(run.loops)})")
         for i, s in enumerate(self.secondaries):
             try:
-                resolve_column(scenario, s.name)
+                resolve_column(run, s.name)
             except ValueError as err:
                 raise ValueError(f"{at}.secondaries[{i}].name: {err}") from None
-        if self.start >= scenario.end_time:
-            raise ValueError(f"{at}.start: {self.start} is not before end_time {scenario.end_time}")
+        if self.start >= run.end_time:
+            raise ValueError(f"{at}.start: {self.start} is not before end_time {run.end_time}")

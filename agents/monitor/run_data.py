@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 
 from agents.monitor.assess import AssessmentResult, assess
-from agents.monitor.columns import SP_SUFFIX, Column, resolve_column
+from agents.monitor.columns import SP_SUFFIX, Column, RunLoop, RunShape, resolve_column
 from agents.monitor.config import MonitorConfig, SecondarySpec, rows_needed
 from agents.monitor.errors import DataError
 from bus_schemas import PlantState, Sample, Setpoint, keys
@@ -117,13 +117,30 @@ class _Table:
     info: WindowInfo
 
 
+def _loop_of(run: RunShape, column: Column) -> RunLoop:
+    """The loop a loop's column (``LOOP``, ``LOOP.sp``) belongs to."""
+    if column.loop is None:
+        raise ValueError(f"column {column.name!r} belongs to no loop")
+    return run.loops[column.loop]
+
+
+def _initial_setpoint(run: RunShape, column: Column) -> float:
+    """The set point at t = 0 of the loop of column ``LOOP.sp``."""
+    setpoint = _loop_of(run, column).setpoint
+    if setpoint is None:
+        raise DataError(
+            f"{column.name!r}: loop {column.loop!r} has no set point", column=column.name
+        )
+    return float(setpoint)
+
+
 class RunSeries:
     """Routine data of loop ``loop`` and further ``columns``, fed message by message.
 
     Parameters
     ----------
-    scenario : Scenario
-        The run's scenario (loops, plants, set-point keys).
+    run : RunShape
+        The run's loops, plant states and set-point keys (:func:`runtime.specs.run_shape`).
     loop : str
         The primary: this loop's delivered samples.
     columns : sequence of str
@@ -141,16 +158,16 @@ class RunSeries:
 
     def __init__(
         self,
-        scenario: Any,
+        run: RunShape,
         loop: str,
         columns: Sequence[str] = (),
         *,
         start: int = 0,
         window: int | None = None,
     ) -> None:
-        if loop not in scenario.loops:
+        if loop not in run.loops:
             raise DataError(
-                f"{loop!r} is not a loop of this run (loops: {sorted(scenario.loops)}); the "
+                f"{loop!r} is not a loop of this run (loops: {sorted(run.loops)}); the "
                 "primary is a loop's delivered measurement",
                 column=loop,
             )
@@ -159,11 +176,14 @@ class RunSeries:
         self.loop = loop
         self.start = start
         self.window = window
-        self.tau_s = round(scenario.loops[loop].tau_s * 1_000_000)
+        tau_s = run.loops[loop].tau_s
+        if tau_s is None:
+            raise DataError(f"{loop!r} samples nothing (no sensor)", column=loop)
+        self.tau_s = round(tau_s * 1_000_000)
         cols: list[Column] = []
         for name in columns:
             try:
-                col = resolve_column(scenario, name)
+                col = resolve_column(run, name)
             except ValueError as err:
                 raise DataError(str(err), column=name) from None
             if col.kind == "meas" and col.loop == loop:
@@ -176,7 +196,7 @@ class RunSeries:
         self._delivered = 0
         self._held: dict[str, _Held] = {c.name: _Held() for c in cols if c.kind != "sp"}
         self._sp: dict[str, tuple[list[int], list[float]]] = {
-            c.name: ([-1], [float(scenario.loops[c.loop].setpoint)]) for c in cols if c.kind == "sp"
+            c.name: ([-1], [_initial_setpoint(run, c)]) for c in cols if c.kind == "sp"
         }
         self._routes: dict[str, tuple[type[BaseModel], list[Callable[..., None]]]] = {}
         self._route(keys.meas(loop), Sample, self._on_primary)
@@ -184,7 +204,7 @@ class RunSeries:
             if c.kind == "meas":
                 self._route(keys.meas(c.loop), Sample, self._meas_of(c.name))
             elif c.kind == "sp":
-                self._route(scenario.setpoint_key(c.loop), Setpoint, self._sp_of(c.name))
+                self._route(_loop_of(run, c).setpoint_key, Setpoint, self._sp_of(c.name))
             else:
                 self._route(keys.plant_state(c.plant), PlantState, self._state_of(c))
 

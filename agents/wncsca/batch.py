@@ -7,13 +7,13 @@ of every trial in numpy arrays, and gives the same overshoots.
 
 What is simulated
 -----------------
-A trial of :class:`agents.wncsca.trials.ScenarioTrials`: each judged loop's plant, its PI
+A trial of :class:`agents.wncsca.trials.Trials`: each judged loop's plant, its PI
 controller (:class:`controllers.pi.PI`: feedforward, forward or backward integral over the time
 between executions, clamping anti-windup, output limits) and a wired sensor path of constant
 delay ``tau_d``; the sensor is sampled at ``0, h, 2h, ...``; the sample taken at ``k h`` is
 used at ``k h + tau_d`` with the set points in force then (a step at that instant included), and
 the move holds from that instant (``tau_a = 0``); the test's steps are moved to their phase as
-:meth:`ScenarioTrials.scenario_at` does. Plants are independent in the model (every loop's
+:meth:`Trials.run` does. Plants are independent in the model (every loop's
 plant is its own node), so a trial is one plant's loops: a check of a period vector is one trial
 per plant and phase, and a plant's trials are memoised by its loops' periods.
 
@@ -62,7 +62,6 @@ from numpy.typing import NDArray
 
 from agents.wncsca.model import LoopModel
 from controllers.pi import PIConfig
-from controllers.registry import uses_feedforward
 from core.time import TICKS_PER_UNIT, to_ticks
 
 __all__ = ["BatchTrials"]
@@ -211,15 +210,15 @@ class BatchTrials:
     Parameters
     ----------
     model : LoopModel
-        The agent's model: its trial scenario, test and phase handling.
+        The agent's model: its closed-loop spec, test and phase handling.
     """
 
     def __init__(self, model: LoopModel) -> None:
         cfg = model.config
-        scenario = model.trials.scenario
+        spec = model.trials.spec
         self.loops: tuple[str, ...] = tuple(model.loops)
         self.index = {n: k for k, n in enumerate(self.loops)}
-        self.end = to_ticks(scenario.end_time)
+        self.end = to_ticks(spec.end_time)
         self.n_phases = 1 if cfg.phase == "fixed" else cfg.phases
         self.shift = cfg.phase == "worst"
         self.items = 0
@@ -229,54 +228,51 @@ class BatchTrials:
         self.plants: dict[str, _Plant] = {}
         by_plant: dict[str, list[str]] = {}
         for n in self.loops:
-            by_plant.setdefault(scenario.loops[n].plant, []).append(n)
+            by_plant.setdefault(spec.loops[n].plant, []).append(n)
         for pname, names in sorted(by_plant.items()):
-            node = scenario.nodes[pname]
-            pm = node.build()
+            plant = spec.plants[pname]
+            pm = plant.model
             missing = [
                 a for a in ("batch_params", "rhs_batch", "outputs_batch") if not hasattr(pm, a)
             ]
             if missing:
                 self.reason = f"plant {pname!r} ({type(pm).__name__}) has no {missing[0]}"
                 return
-            if any(v > 0 for v in getattr(node, "noise", {}).values()):
+            if any(v > 0 for v in plant.noise.values()):
                 self.reason = f"plant {pname!r} has measurement noise"
                 return
             names = sorted(names)
             laws = []
             for n in names:
-                law = scenario.nodes[scenario.loops[n].controller].law
+                law = spec.loops[n].law
                 if not isinstance(law, PIConfig):
                     self.reason = f"loop {n!r} uses control law {law.type!r}, not 'pi'"
                     return
                 laws.append(law)
-            sensors = [scenario.loops[n].sensor for n in names]
+            sensors = [spec.loops[n].sensor for n in names]
             if any(s not in pm.state_names for s in sensors):
                 self.reason = f"plant {pname!r}: a sensor is not a state"
                 return
             steps = tuple(
                 (to_ticks(s.t), names.index(s.loop), float(s.value))
-                for s in scenario.setpoints
+                for s in spec.steps
                 if s.loop in names
             )
             self.plants[pname] = _Plant(
                 name=pname,
                 kind=type(pm),
                 params=tuple(float(v) for v in pm.batch_params()),
-                x0=tuple(float(node.x0[s]) for s in pm.state_names),
-                u0=tuple(float(node.u0[s]) for s in pm.input_names),
-                max_step=float(node.max_step),
-                monitor=to_ticks(node.monitor_period),
+                x0=tuple(float(plant.x0[s]) for s in pm.state_names),
+                u0=tuple(float(plant.u0[s]) for s in pm.input_names),
+                max_step=float(plant.max_step),
+                monitor=to_ticks(plant.monitor_period),
                 loops=tuple(names),
                 out_idx=tuple(pm.output_names.index(s) for s in sensors),
                 state_idx=tuple(pm.state_names.index(s) for s in sensors),
-                act_idx=tuple(pm.input_names.index(scenario.loops[n].actuator) for n in names),
+                act_idx=tuple(pm.input_names.index(spec.loops[n].actuator) for n in names),
                 laws=tuple(laws),
-                feedforward=tuple(
-                    scenario.feedforward(n) if uses_feedforward(law) else None
-                    for n, law in zip(names, laws, strict=True)
-                ),
-                initial=tuple(float(scenario.loops[n].setpoint) for n in names),
+                feedforward=tuple(spec.loops[n].feedforward for n in names),
+                initial=tuple(float(spec.loops[n].setpoint) for n in names),
                 steps=steps,
             )
 

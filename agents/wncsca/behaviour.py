@@ -16,7 +16,6 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from agents.wncsca import trials
 from agents.wncsca.coordinator import Coordinator, Negotiation
 from bus_schemas import Decision, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
@@ -24,17 +23,13 @@ from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour
 from core.time import to_ticks
 
-__all__ = ["WncscaBehaviour", "build"]
-
-
-def build(name: str, scenario: Any, simulate: trials.Simulate) -> WncscaBehaviour:
-    """The agent node ``name`` of ``scenario``, its model of the loops run by ``simulate``
-    (the node kind's build: :data:`runtime.scenario.NODE_KINDS`)."""
-    config = scenario.nodes[name]
-    return WncscaBehaviour(name, trials.coordinator(scenario, config, simulate=simulate))
+__all__ = ["WncscaBehaviour"]
 
 
 class WncscaBehaviour(Behaviour):
+    """The agent node ``name`` around its core (the node kind's build,
+    :func:`runtime.specs.agent_behaviour`, hands it the coordinator of its spec)."""
+
     def __init__(self, name: str, core: Coordinator) -> None:
         super().__init__(name)
         self.core = core

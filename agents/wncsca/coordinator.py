@@ -35,7 +35,7 @@ from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
 from agents.wncsca.capacity import Manager, describe, path_ticks, read_capacity
 from agents.wncsca.chance import LoopLaw
-from agents.wncsca.config import MODES, WncscaConfig
+from agents.wncsca.config import MODES
 from agents.wncsca.decision import (
     Decision,
     ProposalError,
@@ -45,12 +45,13 @@ from agents.wncsca.decision import (
 )
 from agents.wncsca.fast import fast_periods
 from agents.wncsca.guarantee import judge_by_risk, path_laws
-from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links, link_groups
+from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from agents.wncsca.spec import AgentSpec
 from agents.wncsca.steps import judge_step, test_length
 from core.time import to_ticks
-from gateway.carrier import CarrierSpec, PathCarrier
+from gateway.carrier import PathCarrier
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
@@ -90,22 +91,21 @@ class Negotiation:
 
 
 class Coordinator:
-    """The WNCSCA for one scenario.
+    """The WNCSCA of one run.
 
     Parameters
     ----------
-    scenario : Scenario
-        The validated scenario.
+    spec : AgentSpec
+        What the agent knows of its run (its configuration, judged loops, networks and links:
+        :func:`runtime.specs.agent_spec`).
     model : LoopModel
         The agent's model of its loops, handed its simulator
-        (:func:`agents.wncsca.trials.coordinator` builds both).
-    config : WncscaConfig
-        The agent's configuration.
+        (:func:`runtime.specs.coordinator` builds both).
     """
 
-    def __init__(self, scenario: Any, model: LoopModel, config: WncscaConfig) -> None:
-        self.config = config
-        self.scenario = scenario
+    def __init__(self, spec: AgentSpec, model: LoopModel) -> None:
+        self.spec = spec
+        self.config = spec.config
         self.model = model
         self.loops = self.model.loops
         self.benchmark = dict(self.model.benchmark)
@@ -116,27 +116,22 @@ class Coordinator:
         self.accepted: dict[str, int] = {}  # network -> last accepted proposal id
         self.proposal: int | None = None  # the last accepted proposal (any network)
         self.carried = {
-            n: [lp for lp in self.loops if scenario.loops[lp].network == n]
-            for n in scenario.carriers()
+            n: [lp for lp in self.loops if spec.loop_networks[lp] == n] for n in spec.carriers
         }
         # wired loops: constant delays from the scenario; WSN loops: from accepted proposals
         self.delays: dict[str, float] = {
-            lp: scenario.loops[lp].tau_d + scenario.loops[lp].tau_a
+            lp: spec.loop_delays[lp]
             for lp in self.loops
-            if not scenario.is_wireless(scenario.loops[lp].network)
+            if not spec.is_wireless(spec.loop_networks[lp])
         }
         # linked controllers (seed 001): update periods by analysis (agents/wncsca/links.py)
-        self.link_groups: list[LinkGroup] = (
-            link_groups(scenario, scenario.multi_loop_law, self.config.links.analysis)
-            if self.config.links
-            else []
-        )
+        self.link_groups: list[LinkGroup] = list(spec.link_groups)
         self.link_delays: dict[str, float] = {
-            n: lk.delay for n, lk in scenario.links.items() if not scenario.is_wireless(lk.network)
+            n: lk.delay for n, lk in spec.links.items() if not spec.is_wireless(lk.network)
         }
-        self.link_periods: dict[str, float] = {n: lk.period for n, lk in scenario.links.items()}
+        self.link_periods: dict[str, float] = {n: lk.period for n, lk in spec.links.items()}
         self._bounds: dict[str, DelayBound] | None = None
-        self.setpoints = {n: lp.setpoint for n, lp in scenario.loops.items()}
+        self.setpoints = dict(spec.setpoints)
         # the chance method: each loop's delay law of the accepted configuration, and a
         # tightened step's transient (the periods to relax back to, and when)
         self.laws: dict[str, LoopLaw] = {}
@@ -173,7 +168,7 @@ class Coordinator:
         """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``."""
         pid = body.get("id") if isinstance(body, Mapping) else None
         valid_id = isinstance(pid, int) and not isinstance(pid, bool) and pid >= 0
-        if network not in self.carried or not self.scenario.is_wireless(network):
+        if network not in self.carried or not self.spec.is_wireless(network):
             return self._refused(network, pid if valid_id else None, f"{network!r} is no gateway")
         if not isinstance(body, Mapping) or not valid_id:
             return self._refused(network, None, "id: missing or not an integer >= 0")
@@ -189,7 +184,7 @@ class Coordinator:
         link_paths: dict[str, Any] = {}
         if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
             link_paths = {
-                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.scenario.links
+                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.spec.links
             }
             paths = {p: e for p, e in paths.items() if p not in link_paths}
         risk: Assignment | None = None
@@ -283,7 +278,7 @@ class Coordinator:
             reasons = tuple(f"{n}: control path down (no route)" for n in down)
             return Decision(pid, "reject", reasons, known, {}, used, tuple(down)), None
         decision, result = judge_by_risk(
-            self.model, laws, known, pid, used, seed=self.scenario.seed, carried=carried
+            self.model, laws, known, pid, used, seed=self.spec.seed, carried=carried
         )
         if decision.verdict == "accept":
             self.laws.update(laws)
@@ -292,7 +287,7 @@ class Coordinator:
     def _link_delays(self, network: str, link_paths: Mapping[str, Any]) -> dict[str, float]:
         """Delay of every link of ``network`` from its path in a proposal (``inf``: no route)."""
         out: dict[str, float] = {}
-        for name, lk in sorted(self.scenario.links.items()):
+        for name, lk in sorted(self.spec.links.items()):
             if lk.network != network or not self.config.links:
                 continue
             entry = link_paths.get(f"{name}.link")
@@ -308,7 +303,7 @@ class Coordinator:
         """Judge the groups with a link over ``network`` under the proposal's link ``delays``."""
         out = []
         for group in self.link_groups:
-            if not any(self.scenario.links[n].network == network for n in group.links):
+            if not any(self.spec.links[n].network == network for n in group.links):
                 continue
             trial = {**self.link_delays, **delays}
             out.append(judge_links(group, trial, self.config.links))
@@ -400,7 +395,7 @@ class Coordinator:
                 self.setpoints,
                 loop,
                 float(value),
-                self.scenario.seed,
+                self.spec.seed,
             )
             judged = (step.reason(self.config.overshoot_limit),)
             if step.verdict == "refuse":
@@ -470,7 +465,7 @@ class Coordinator:
     def energy(self, network: str, paths: Any) -> dict[str, Any] | None:
         """Projected network lifetime (the first battery node to run out) under the control
         periods against the benchmark periods, over the proposal's routes."""
-        cfg = self.scenario.nodes[network]
+        cfg = self.spec.carriers[network].gateway
         if getattr(cfg, "mac", "per_hop") == "tsch":
             return self._tsch_energy(network, paths)
         topology = Topology(cfg.topology)
@@ -507,16 +502,7 @@ class Coordinator:
         """:meth:`energy` over a TSCH network: the first battery to run out under its manager's
         schedule for the proposal's routes (:meth:`gateway.tsch.network.TschNetwork.lifetimes_h`),
         the loops' sensor and actuator paths at their periods."""
-        sc = self.scenario
-        carrier = PathCarrier(
-            CarrierSpec(
-                node=network,
-                seed=sc.seed,
-                loops={n: lp for n, lp in sorted(sc.loops.items()) if lp.network == network},
-                links={n: lk for n, lk in sorted(sc.links.items()) if lk.network == network},
-                gateway=sc.nodes[network],
-            )
-        )
+        carrier = PathCarrier(self.spec.carriers[network])
         assert carrier.tsch is not None
         try:
             routes = {str(p): (tuple(e.get("route") or ()) or None) for p, e in paths.items()}

@@ -101,7 +101,6 @@ from agents.wncsca.assignment import Assignment, Trial
 from agents.wncsca.batch import BatchTrials
 from agents.wncsca.model import LoopModel
 from controllers.pi import PIConfig
-from controllers.registry import uses_feedforward
 from core.time import TICKS_PER_UNIT, to_ticks
 from plants.linearization import equilibrium, jacobians
 
@@ -367,7 +366,7 @@ class LinearPredictor:
     Parameters
     ----------
     model : LoopModel
-        The agent's model: its scenario, test, phase handling and limit.
+        The agent's model: its closed-loop spec, test, phase handling and limit.
     delays : mapping
         Control-path delay of each loop, time units (default 0).
 
@@ -379,10 +378,10 @@ class LinearPredictor:
 
     def __init__(self, model: LoopModel, delays: Mapping[str, float]) -> None:
         cfg = model.config
-        scenario = model.trials.scenario
+        spec = model.trials.spec
         self.loops: tuple[str, ...] = tuple(model.loops)
         self.index = {n: k for k, n in enumerate(self.loops)}
-        self.end = to_ticks(scenario.end_time)
+        self.end = to_ticks(spec.end_time)
         self.delay = {n: to_ticks(float(delays.get(n, 0.0))) for n in self.loops}
         self.n_phases = 1 if cfg.phase == "fixed" else cfg.phases
         self.shift = cfg.phase == "worst"
@@ -390,37 +389,32 @@ class LinearPredictor:
         self.items = 0
         self.laws: dict[str, _Law] = {}
         for n in self.loops:
-            law = scenario.nodes[scenario.loops[n].controller].law
+            law = spec.loops[n].law
             if not isinstance(law, PIConfig):
                 raise ValueError(
                     f"fast method: loop {n!r} uses control law {law.type!r}; only 'pi' loops "
                     "are modelled (use method 'paper')"
                 )
             self.laws[n] = _Law(law.Kp, law.Ki, law.u_min, law.u_max, law.integration == "forward")
-        self.plant_of = {n: scenario.loops[n].plant for n in self.loops}
+        self.plant_of = {n: spec.loops[n].plant for n in self.loops}
         self.plants: dict[str, _PlantData] = {}
         for pname in sorted(set(self.plant_of.values())):
-            cfg_p = scenario.nodes[pname]
-            pm = cfg_p.build()
+            plant = spec.plants[pname]
+            pm = plant.model
             names = tuple(sorted(n for n in self.loops if self.plant_of[n] == pname))
             self.plants[pname] = _PlantData(
                 name=pname,
                 model=pm,
-                x0=np.array([cfg_p.x0[s] for s in pm.state_names], dtype=float),
-                u0=np.array([cfg_p.u0[s] for s in pm.input_names], dtype=float),
+                x0=np.array([plant.x0[s] for s in pm.state_names], dtype=float),
+                u0=np.array([plant.u0[s] for s in pm.input_names], dtype=float),
                 loops=names,
-                y_index={n: pm.output_names.index(scenario.loops[n].sensor) for n in names},
-                u_index={n: pm.input_names.index(scenario.loops[n].actuator) for n in names},
-                feedforward={
-                    n: scenario.feedforward(n)
-                    if uses_feedforward(scenario.nodes[scenario.loops[n].controller].law)
-                    else None
-                    for n in names
-                },
-                monitor=cfg_p.monitor_period,
+                y_index={n: pm.output_names.index(spec.loops[n].sensor) for n in names},
+                u_index={n: pm.input_names.index(spec.loops[n].actuator) for n in names},
+                feedforward={n: spec.loops[n].feedforward for n in names},
+                monitor=plant.monitor_period,
             )
-        self.initial = {n: float(scenario.loops[n].setpoint) for n in self.loops}
-        self.steps = [(to_ticks(s.t), s.loop, float(s.value)) for s in scenario.setpoints]
+        self.initial = {n: float(spec.loops[n].setpoint) for n in self.loops}
+        self.steps = [(to_ticks(s.t), s.loop, float(s.value)) for s in spec.steps]
         self._pade: dict[int, tuple[NDArray[np.float64], ...]] = {}
         self._models: dict[tuple[Any, ...], _Modal] = {}
         self.depends = {n: self._depends(n) for n in self.loops}
@@ -565,7 +559,7 @@ class LinearPredictor:
         lag = d_i // hi
         theta = (d_i - lag * hi) / TICKS_PER_UNIT
 
-        # the test's steps on this plant, moved to their phase (LoopModel.scenario_at)
+        # the test's steps on this plant, moved to their phase (Trials.run)
         steps = [(t, pl.index(n), v) for t, n, v in self.steps if n in pl]
         n_steps = len(steps)
         t_step = np.zeros((n_items, n_steps), dtype=np.int64)
@@ -1363,7 +1357,7 @@ def fast_periods(
     limit = cfg.overshoot_limit
     predictor = LinearPredictor(model, delays)
     if batched is None:  # the batch pays off when a check would run several plants
-        batched = len({model.trials.scenario.loops[n].plant for n in model.loops}) > 1
+        batched = len({model.trials.spec.loops[n].plant for n in model.loops}) > 1
     batch = BatchTrials(model) if batched else None
     if batch is not None and not batch.available:
         batch = None

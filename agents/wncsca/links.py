@@ -17,9 +17,9 @@ rejects a configuration under which no period stabilizes the group.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from agents.update_period.delay import DelayedUpdates, HRange, find_h_range
 from agents.update_period.sampled import SampledQDC
 from agents.wncsca.config import LinksConfig
 
-__all__ = ["LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
+__all__ = ["Link", "LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
 
 
 @dataclass(frozen=True)
@@ -75,20 +75,38 @@ class LinkVerdict:
         }
 
 
-def link_groups(scenario: Any, build: Any, analysis: str = "spectral_radius") -> list[LinkGroup]:
-    """The scenario's groups of linked controllers.
+class Link(Protocol):
+    """A link between two controllers, as the scenario configures it (``links:``)."""
+
+    @property
+    def from_(self) -> str: ...
+
+    @property
+    def to(self) -> str: ...
+
+
+def link_groups(
+    links: Mapping[str, Link],
+    build: Callable[[str], Any],
+    analysis: str = "spectral_radius",
+    *,
+    tau_s: Callable[[str], float],
+) -> list[LinkGroup]:
+    """The groups of controllers joined by ``links`` (a scenario's ``links:``, by name).
 
     Parameters
     ----------
-    scenario : Scenario
-        With ``links:`` (each ``from``/``to`` a controller node).
+    links : mapping
+        Each link's sending (``from_``) and receiving (``to``) controller node, by link name.
     build : callable
         ``build(controller) -> law`` (the law the controller node runs); the law of every
         controller of a group offers ``closed_loop() -> (Acl, Rcl)``, and for the ``sampled``
         analysis ``networked_model() -> (plant, network)``.
     analysis : {"spectral_radius", "sampled"}
         With ``sampled`` the groups also carry the sampled-data loop at the controllers'
-        sampling period (``scenario.multi_loop_tau_s``, one per group).
+        sampling period (``tau_s(controller)``, one per group).
+    tau_s : callable
+        A multi-loop controller's sampling period (time units).
 
     Raises
     ------
@@ -96,7 +114,6 @@ def link_groups(scenario: Any, build: Any, analysis: str = "spectral_radius") ->
         A linked controller whose law offers no ``closed_loop`` (the agent cannot analyse it), or
         laws of one group that describe different networked loops (their design settings differ).
     """
-    links = getattr(scenario, "links", None) or {}
     parent: dict[str, str] = {}
 
     def find(a: str) -> str:
@@ -131,13 +148,13 @@ def link_groups(scenario: Any, build: Any, analysis: str = "spectral_radius") ->
                     "linked controllers must share the design settings"
                 )
         names = tuple(sorted(n for n, lk in links.items() if lk.from_ in ctrls or lk.to in ctrls))
-        sampled = _sampled(scenario, ctrls, law) if analysis == "sampled" else None
+        sampled = _sampled(tau_s, ctrls, law) if analysis == "sampled" else None
         groups.append(LinkGroup("+".join(ctrls), tuple(ctrls), names, system, sampled))
     return groups
 
 
-def _sampled(scenario: Any, ctrls: list[str], law: Any) -> SampledQDC:
-    taus = {c: scenario.multi_loop_tau_s(c) for c in ctrls}
+def _sampled(tau_s: Callable[[str], float], ctrls: list[str], law: Any) -> SampledQDC:
+    taus = {c: tau_s(c) for c in ctrls}
     if len(set(taus.values())) != 1:
         raise ValueError(
             f"links.analysis: sampled needs one sampling period for the linked controllers, "

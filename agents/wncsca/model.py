@@ -1,5 +1,5 @@
-"""The agent's closed-loop model: a scenario's plants and controllers with every loop carried by
-a wired path of constant delay, under the agent's set-point test, simulated by the ``direct``
+"""The agent's closed-loop model: its judged loops' plants and controllers with every loop carried
+by a wired path of constant delay, under the agent's set-point test, simulated by the ``direct``
 engine through the :class:`Trials` it is handed (seed 000, III.C-III.E: the WNCSCA judges a
 configuration by simulating its loops).
 
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from agents.wncsca.config import WncscaConfig
+from agents.wncsca.spec import ClosedLoopSpec
 from core.record import RunRecord, loop_metrics
 from core.time import to_ticks
 
@@ -43,8 +44,8 @@ class Evaluation:
 
 class Trials(Protocol):
     """What the agent's model simulates: its loops on wired paths under the set-point test,
-    built once from the scenario (:class:`agents.wncsca.trials.ScenarioTrials`) and run on the
-    direct engine for each trial."""
+    built once by the scenario layer (:class:`agents.wncsca.spec.ClosedLoopSpec`) and run on the
+    direct engine for each trial (:class:`agents.wncsca.trials.Trials`)."""
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -57,9 +58,9 @@ class Trials(Protocol):
         ...
 
     @property
-    def scenario(self) -> Any:
-        """The model as a scenario (benchmark periods, no delay): what the fast method
-        linearises."""
+    def spec(self) -> ClosedLoopSpec:
+        """The model (benchmark periods, no delay): what the fast and batched methods
+        linearise and integrate themselves."""
         ...
 
     @property
@@ -76,6 +77,30 @@ class Trials(Protocol):
         """Simulate with these periods and control-path delays (time units); with
         ``phase=(k, n)`` every test step is moved to ``k/n`` of its loop's period after a
         sampling instant."""
+        ...
+
+    def run_steps(
+        self,
+        periods: Mapping[str, float],
+        delays: Mapping[str, float],
+        steps: list[tuple[float, str, float]],
+        end_time: float,
+        traces: Mapping[str, list[float | None]] | None = None,
+    ) -> RunRecord:
+        """Simulate these set-point steps (``(t, loop, value)``) instead of the test's, to
+        ``end_time``, with sensor-path delays replayed from ``traces``."""
+        ...
+
+    def run_replay(
+        self,
+        periods: Mapping[str, float],
+        delays: Mapping[str, float],
+        traces: Mapping[str, list[float | None]],
+        phases: Mapping[tuple[int, str], int],
+        denominator: int,
+    ) -> RunRecord:
+        """Simulate the test with sensor-path delays replayed from ``traces`` and the steps
+        moved to the phases ``phases[(tick, loop)] / denominator`` of their loop's period."""
         ...
 
 

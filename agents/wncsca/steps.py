@@ -141,7 +141,7 @@ def judge_step(
 
 def test_length(model: LoopModel) -> float:
     """The agent's test horizon (time units): how long a trial settles and judges a step."""
-    return float(model.trials.scenario.end_time)
+    return float(model.trials.spec.end_time)
 
 
 def _traces(

@@ -18,6 +18,7 @@ from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from core.time import to_ticks
 from runtime.direct import simulate
 from runtime.scenario import Scenario, parse_scenario
+from runtime.specs import run_shape
 from tests.conftest import SCENARIOS, load_yaml
 
 LOOP, WINDOW, START = "temperature", 2000, 100.0
@@ -26,7 +27,7 @@ COLUMNS = {"reactor.y2": "y2", "reactor.y3": "y3"}
 
 def _series(scenario: Scenario, rec, columns) -> RunSeries:
     series = RunSeries(
-        scenario, LOOP, [f"{LOOP}.sp", *columns], start=to_ticks(START), window=WINDOW
+        run_shape(scenario), LOOP, [f"{LOOP}.sp", *columns], start=to_ticks(START), window=WINDOW
     )
     feed_run_record(rec, series, until=to_ticks(scenario.end_time))
     return series

@@ -17,6 +17,7 @@ from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, code
 from bus_schemas.bodies import PlantState, Sample, Setpoint
 from core.errors import ConfigError, SchemaError
 from runtime.scenario import parse_scenario
+from runtime.specs import run_shape
 from tests.conftest import SCENARIOS, load_yaml
 
 CASCADE = SCENARIOS / "cascade_routine.yaml"
@@ -43,14 +44,14 @@ def _variant(data, **monitor):
 # Columns
 # ---------------------------------------------------------------------------------------------
 def test_column_names(scenario):
-    c = resolve_column(scenario, "temperature")
+    c = resolve_column(run_shape(scenario), "temperature")
     assert (c.kind, c.loop) == ("meas", "temperature")
-    c = resolve_column(scenario, "temperature.sp")
+    c = resolve_column(run_shape(scenario), "temperature.sp")
     assert (c.kind, c.loop) == ("sp", "temperature")
-    c = resolve_column(scenario, "reactor.y2")
+    c = resolve_column(run_shape(scenario), "reactor.y2")
     assert (c.kind, c.plant, c.state) == ("state", "reactor", "y2")
     with pytest.raises(ValueError) as exc:
-        resolve_column(scenario, "reactor.T_j")
+        resolve_column(run_shape(scenario), "reactor.T_j")
     text = str(exc.value)
     assert "'reactor.T_j' is not a column of this run" in text
     assert "loops ['temperature']" in text and "reactor.y2" in text and "reactor.n3" in text
@@ -58,13 +59,13 @@ def test_column_names(scenario):
 
 def test_series_refuses_unknown_columns_naming_them(scenario):
     with pytest.raises(DataError) as exc:
-        RunSeries(scenario, "level", [])
+        RunSeries(run_shape(scenario), "level", [])
     assert exc.value.column == "level" and "not a loop of this run" in str(exc.value)
     with pytest.raises(DataError) as exc:
-        RunSeries(scenario, "temperature", ["reactor.y9"])
+        RunSeries(run_shape(scenario), "temperature", ["reactor.y9"])
     assert exc.value.column == "reactor.y9"
     with pytest.raises(DataError, match="the primary itself"):
-        RunSeries(scenario, "temperature", ["temperature"])
+        RunSeries(run_shape(scenario), "temperature", ["temperature"])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -98,7 +99,9 @@ def _feed_run(series: RunSeries, n: int, *, sp_at: dict[int, float] | None = Non
 
 
 def test_columns_align_on_the_loops_samples(scenario):
-    s = RunSeries(scenario, "temperature", ["temperature.sp", "reactor.y2", "reactor.y3"])
+    s = RunSeries(
+        run_shape(scenario), "temperature", ["temperature.sp", "reactor.y2", "reactor.y3"]
+    )
     assert [k for k, _ in s.subscriptions()] == [
         "loop/temperature/meas",
         "ops/setpoint/temperature",
@@ -119,7 +122,7 @@ def test_columns_align_on_the_loops_samples(scenario):
 
 
 def test_window_start_and_out_of_order_delivery(scenario):
-    s = RunSeries(scenario, "temperature", ["reactor.y2"], start=3 * S, window=5)
+    s = RunSeries(run_shape(scenario), "temperature", ["reactor.y2"], start=3 * S, window=5)
     grid = tuple(range(0, 9 * S, 2 * S))  # a grid of 2 min
     s.feed(keys.plant_state("reactor"), 0, 0, PlantState(t=grid, values={"y2": (0, 2, 4, 6, 8)}))
     for k, ts in enumerate([0, 1, 2, 3, 5, 4, 6, 8, 7]):  # 4 and 7 arrive late
@@ -132,8 +135,10 @@ def test_window_start_and_out_of_order_delivery(scenario):
 
 
 def test_pruned_window_equals_the_tail_of_the_whole_series(scenario):
-    whole = RunSeries(scenario, "temperature", ["temperature.sp", "reactor.y2"])
-    windowed = RunSeries(scenario, "temperature", ["temperature.sp", "reactor.y2"], window=37)
+    whole = RunSeries(run_shape(scenario), "temperature", ["temperature.sp", "reactor.y2"])
+    windowed = RunSeries(
+        run_shape(scenario), "temperature", ["temperature.sp", "reactor.y2"], window=37
+    )
     for s in (whole, windowed):
         _feed_run(s, 300, sp_at={11: 1.0, 5 * 150 + 1: 2.0})
     a, _ = whole.table()
@@ -145,7 +150,7 @@ def test_pruned_window_equals_the_tail_of_the_whole_series(scenario):
 
 
 def test_refusals_name_column_and_row(scenario):
-    s = RunSeries(scenario, "temperature", ["reactor.y2"])
+    s = RunSeries(run_shape(scenario), "temperature", ["reactor.y2"])
     s.feed(keys.meas("temperature"), 1, 0, Sample(value=1.0, t_sampled=0))
     s.feed(keys.plant_state("reactor"), 2, S, PlantState(t=(S,), values={"y2": (0.5,)}))
     s.feed(keys.meas("temperature"), 3, S, Sample(value=2.0, t_sampled=S))
@@ -154,7 +159,7 @@ def test_refusals_name_column_and_row(scenario):
     assert (exc.value.column, exc.value.row) == ("reactor.y2", 1)
     assert "column 'reactor.y2', row 1 (sampled at t = 0): missing value" in str(exc.value)
 
-    s = RunSeries(scenario, "temperature", ["temperature.sp", "reactor.y2"])
+    s = RunSeries(run_shape(scenario), "temperature", ["temperature.sp", "reactor.y2"])
     _feed_run(s, 30)
     table, _ = s.table(min_rows=30)  # the set point may be constant
     assert np.ptp(table["temperature.sp"]) == 0.0
@@ -163,7 +168,7 @@ def test_refusals_name_column_and_row(scenario):
     assert exc.value.row == 30 and "30 samples in the window; the model needs at least 31" in str(
         exc.value
     )
-    s = RunSeries(scenario, "temperature", ["reactor.z1"])
+    s = RunSeries(run_shape(scenario), "temperature", ["reactor.z1"])
     _feed_run(s, 30)
     with pytest.raises(DataError) as exc:
         s.table()
@@ -171,7 +176,7 @@ def test_refusals_name_column_and_row(scenario):
 
 
 def test_assess_series_uses_the_control_error(scenario):
-    s = RunSeries(scenario, "temperature", ["temperature.sp", "reactor.y2"])
+    s = RunSeries(run_shape(scenario), "temperature", ["temperature.sp", "reactor.y2"])
     _feed_run(s, 400, sp_at={5 * 200 + 1: 3.0})
     result, info = assess_series(s, 4, [], setpoint=True)
     table, _ = s.table()
@@ -227,7 +232,7 @@ def test_node_config_checked_against_the_scenario(data, monitor, message):
 
 def test_shipped_scenario_passes_its_checks(scenario):
     cfg = scenario.nodes["monitor"]
-    cfg.check(scenario, "monitor")
+    cfg.check(run_shape(scenario), "monitor")
     assert cfg.d == 4 and cfg.columns() == ["temperature.sp", "reactor.y2", "reactor.y3"]
 
 

@@ -32,19 +32,25 @@ class _Law:
         return self.matrices
 
 
-def _scenario(**links):
-    return SimpleNamespace(links={n: SimpleNamespace(from_=a, to=b) for n, (a, b) in links.items()})
+def _links(**links):
+    return {n: SimpleNamespace(from_=a, to=b) for n, (a, b) in links.items()}
+
+
+def _no_tau_s(controller: str) -> float:
+    raise AssertionError("the spectral-radius analysis needs no sampling period")
 
 
 def _group(delta1: float = 0.0, scheme: str = "model"):
     law = _Law(delta1, scheme)
-    (g,) = link_groups(_scenario(x1=("u1", "u2"), x2=("u2", "u1")), lambda c: law)
+    (g,) = link_groups(_links(x1=("u1", "u2"), x2=("u2", "u1")), lambda c: law, tau_s=_no_tau_s)
     return g
 
 
 def test_groups_join_linked_controllers_and_name_their_links():
     laws = {c: _Law() for c in ("a", "b", "c", "d")}
-    groups = link_groups(_scenario(l1=("a", "b"), l2=("b", "a"), l3=("c", "d")), lambda c: laws[c])
+    groups = link_groups(
+        _links(l1=("a", "b"), l2=("b", "a"), l3=("c", "d")), lambda c: laws[c], tau_s=_no_tau_s
+    )
     assert [(g.controllers, g.links) for g in groups] == [
         (("a", "b"), ("l1", "l2")),
         (("c", "d"), ("l3",)),
@@ -80,10 +86,10 @@ def test_a_link_delay_shortens_the_period_and_too_long_a_delay_is_rejected():
 
 def test_a_law_without_closed_loop_or_with_another_design_is_refused():
     with pytest.raises(ValueError, match="nodes.u1.law: .*closed_loop"):
-        link_groups(_scenario(x1=("u1", "u2")), lambda c: object())
+        link_groups(_links(x1=("u1", "u2")), lambda c: object(), tau_s=_no_tau_s)
     laws = {"u1": _Law(0.0), "u2": _Law(0.3)}
     with pytest.raises(ValueError, match="nodes.u2.law: describes another networked loop"):
-        link_groups(_scenario(x1=("u1", "u2")), lambda c: laws[c])
+        link_groups(_links(x1=("u1", "u2")), lambda c: laws[c], tau_s=_no_tau_s)
 
 
 def test_links_config_is_validated():

@@ -1,0 +1,73 @@
+"""Digests of every shipped scenario's run record, here and (``--against REV``) in another tree.
+
+A refit must not move a single sample: this runs each scenario of ``scenarios/`` on the direct
+engine (the same behaviours the bus engines run; ``tests/integration/test_engines_agree.py``
+holds the engines together) and prints the blake2b digest of its record as ``record.json``
+keeps it (:func:`runtime.report.save_record`), wall-clock figures left out (the agent's decision
+times). With ``--against REV`` the same is computed in a worktree of ``REV`` and every scenario
+is compared; the exit code is 1 when any differs.
+
+    .venv/bin/python bench/traces_digest.py --against HEAD~3
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from against import ROOT, Comparison, measure_in
+
+SNIPPET = """
+import hashlib, json, sys, tempfile
+from pathlib import Path
+from runtime.direct import simulate
+from runtime.report import save_record
+try:
+    from runtime.scenario import load_scenario
+except ImportError:
+    from scenario import load_scenario
+
+WALL = {"decision_time_s", "wall_s", "phases_s", "timing"}
+
+def strip(x):
+    if isinstance(x, dict):
+        return {k: strip(v) for k, v in x.items() if k not in WALL}
+    if isinstance(x, list):
+        return [strip(v) for v in x]
+    return x
+
+out = {}
+with tempfile.TemporaryDirectory() as tmp:
+    for path in sorted(Path(ROOT, "scenarios").glob("*.yaml")):
+        save_record(simulate(load_scenario(path)), Path(tmp))
+        data = strip(json.loads((Path(tmp) / "record.json").read_text()))
+        text = json.dumps(data, sort_keys=True).encode()
+        out[path.name] = hashlib.blake2b(text, digest_size=16).hexdigest()
+print(json.dumps(out))
+"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", metavar="REV", help="compare with revision REV")
+    args = parser.parse_args(argv)
+    ours: dict[str, str] = measure_in(ROOT, SNIPPET)
+    if args.against is None:
+        for name, digest in ours.items():
+            print(f"{name:32s} {digest}")
+        return 0
+    with Comparison(args.against) as cmp:
+        theirs: dict[str, str] = measure_in(Path(cmp.tree), SNIPPET)
+    differ = 0
+    for name in sorted(set(ours) | set(theirs)):
+        a, b = ours.get(name, "-"), theirs.get(name, "-")
+        same = "same" if a == b else "DIFFERS"
+        differ += a != b
+        print(f"{name:32s} {a} {b} {same}")
+    print(f"{len(ours)} scenarios here, {len(theirs)} at {args.against}: {differ} differ")
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
