@@ -13,6 +13,8 @@ COPY gateway gateway
 COPY kernel kernel
 COPY plants plants
 COPY runtime runtime
+COPY cli cli
+COPY scenario scenario
 COPY wncs wncs
 COPY scenarios scenarios
 RUN pip install --no-cache-dir --no-deps --no-build-isolation .

@@ -38,7 +38,7 @@ test-fast: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check --exclude '*.md' .
-	$(BIN)/mypy --strict bus_schemas core kernel
+	$(BIN)/mypy --strict bus_schemas core kernel scenario agents/wncsca
 
 # The documentation site into site/ (docs/hooks.py generates the reference pages from the code);
 # --strict: a broken link or anchor, or a page left out of the nav, fails the build.

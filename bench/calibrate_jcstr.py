@@ -79,7 +79,7 @@ from section3c import largest_tau_d, largest_tau_s, markdown, rows  # beside thi
 from core.record import loop_metrics
 from plants.jcstr import JCSTR, JCSTRParams
 from runtime.direct import simulate
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"
 END_TIME = 6.0  # pu; with 4.0 the slow PI tails cannot settle at the gains the figures need

@@ -31,7 +31,7 @@ from bus_schemas import codec, keys
 from dashboard.server import Dashboard
 from runtime import history
 from runtime.launcher import SCENARIO_FILE
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "jcstr_wncs.yaml"

@@ -53,7 +53,7 @@ from kernel.router_process import RouterProcess
 from runtime.affinity import ANY, cpus_of, pinned_here, with_default
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"
 
@@ -62,7 +62,7 @@ DIRECT_MS = """
 import json, time
 from kernel.bus import open_client, open_router
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
 simulate(scenario)
 best = float("inf")

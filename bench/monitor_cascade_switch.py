@@ -52,8 +52,8 @@ from controllers.pi import PI, PIConfig
 from core.time import to_ticks
 from plants.cascade_ct import CascadeCTParams, SampledCascadeCT, sampled
 from runtime.direct import simulate
-from runtime.scenario import Scenario, parse_scenario
-from runtime.specs import run_shape
+from scenario import Scenario, parse_scenario
+from scenario.views import run_shape
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("cascade_routine", "cascade_routine_primary")

@@ -70,7 +70,7 @@ from kernel.router_process import RouterProcess
 from runtime.direct import behaviour_of
 from runtime.history import connect
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "jcstr_benchmark.yaml"
 

@@ -42,7 +42,7 @@ from engines import rounds_of
 from runtime.direct import simulate
 from runtime.launcher import launch
 from runtime.scale import PLANTS, write_scale
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 
 def growth(ns: list[int], per_unit: list[float]) -> float:

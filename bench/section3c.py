@@ -25,7 +25,7 @@ from pathlib import Path
 
 from core.record import loop_metrics
 from runtime.direct import simulate
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 __all__ = [
     "OS_LIMIT",

@@ -1,11 +1,11 @@
 """Start-up cost of a node process (issue 20, item 3): import time per node kind.
 
-Every node process runs ``wncs node SCENARIO NAME ...``, which imports ``runtime.cli`` and with
+Every node process runs ``wncs node SCENARIO NAME ...``, which imports ``cli.main`` and with
 it every node kind (the scenario's unions are built from the registries). Printed, each measured
 in ``--repeat`` fresh interpreters (median wall time of the import alone): the interpreter with
 numpy, scipy, pydantic and zenoh; each node kind's behaviour module, as a lean entry point would
-load it; and ``runtime.cli``, what a node loads today. Then the ten slowest modules of
-``import runtime.cli`` by cumulative time (``python -X importtime``).
+load it; and ``cli.main``, what a node loads today. Then the ten slowest modules of
+``import cli.main`` by cumulative time (``python -X importtime``).
 
 Then the start-up of the processes engine on the JCSTR benchmark (``wncs run`` until the first
 round: router, node processes, imports, sessions, every node alive), here and at ``--against
@@ -33,9 +33,9 @@ MODULES = {
     "operator (agents.operator.behaviour)": "agents.operator.behaviour",
     "agent (agents.wncsca.behaviour)": "agents.wncsca.behaviour",
     "monitor (agents.monitor.behaviour)": "agents.monitor.behaviour",
-    "scenario schema (runtime.scenario)": "runtime.scenario",
+    "scenario schema (scenario)": "scenario",
     "what the fork server imports (runtime.nodes)": "runtime.nodes",
-    "wncs node (runtime.cli)": "runtime.cli",
+    "wncs node (cli.main)": "cli.main",
 }
 
 
@@ -99,8 +99,8 @@ def main() -> None:
     print("|---|---:|")
     for label, module in MODULES.items():
         print(f"| {label} | {import_seconds(module, args.repeat):.2f} |")
-    print("\nslowest modules under `import runtime.cli` (cumulative s):")
-    for seconds, name in slowest("runtime.cli"):
+    print("\nslowest modules under `import cli.main` (cumulative s):")
+    for seconds, name in slowest("cli.main"):
         print(f"  {seconds:6.3f}  {name}")
     processes_startup(args.against, args.launches)
 

@@ -23,8 +23,8 @@ import hashlib, json, sys, tempfile
 from pathlib import Path
 from runtime.direct import simulate
 from runtime.report import save_record
-try:
-    from runtime.scenario import load_scenario
+try:  # a tree before the scenario package (issue 34), first: its own scenario
+    from scenario import load_scenario
 except ImportError:
     from scenario import load_scenario
 

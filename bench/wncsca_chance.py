@@ -33,7 +33,7 @@ from agents.wncsca.chance import probability_interval
 from core.record import loop_metrics
 from core.time import to_units
 from runtime.direct import simulate
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 __all__ = ["run_one", "main"]
 

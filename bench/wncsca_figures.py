@@ -44,7 +44,7 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.plots import fig10
 from runtime.direct import loop_model
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 __all__ = [
     "DEFAULT_SCENARIO",

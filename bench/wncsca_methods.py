@@ -39,7 +39,7 @@ from agents.wncsca.fast import energy_rate, fast_periods
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from runtime.direct import loop_model
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 __all__ = ["WORKED", "GRID", "Row", "run", "main"]
 

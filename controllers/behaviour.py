@@ -2,7 +2,7 @@
 
 **One loop** (``loop: l``): it computes a move for every sample delivered on ``loop/<l>/meas``
 with the set points current at that instant, and publishes it on ``loop/<l>/u``. Set points of all
-loops of the plant are followed (:meth:`~runtime.scenario.Scenario.setpoint_key`: from operations,
+loops of the plant are followed (:meth:`~scenario.Scenario.setpoint_key`: from operations,
 or from the coordination agent when one governs the loops), because the steady-state feedforward
 of one input depends on all of them (seed 000, eq. (5)-(7)). Under a coordination agent the loop
 may be opened (``wncsca/rates``: steady state): the controller then computes nothing and the
@@ -68,7 +68,7 @@ __all__ = ["ControllerBehaviour", "ControllerSpec"]
 @dataclass(frozen=True)
 class ControllerSpec:
     """What a controller node needs of its scenario, computed once
-    (:func:`runtime.specs.controller_spec`).
+    (:func:`scenario.views.controller_spec`).
 
     Attributes
     ----------

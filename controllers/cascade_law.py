@@ -121,7 +121,7 @@ def cascade_variant(
     measurement-only loop ``secondary_loop`` (default ``<loop>_secondary``) samples plant output
     ``secondary`` with the loop's sampling period and network. Monitor nodes are left out (they
     assess the simple-feedback loop). Validate the result with
-    :func:`runtime.scenario.parse_scenario`.
+    :func:`scenario.load.parse_scenario`.
     """
     out = copy.deepcopy(dict(data))
     base = out["loops"][loop]

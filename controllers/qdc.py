@@ -61,7 +61,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -278,14 +278,15 @@ class QDCDesign(BaseModel):
             a_i, b_i = plant.a(i, i), plant.b(i)
             poles = np.asarray(self.controller_poles[i], dtype=float)
             if self.controller_method == "diagonal":
-                K[i][i] = np.linalg.solve(b_i, np.diag(poles) - a_i)
+                # np.linalg.solve is typed floating[Any]: float64 for these float64 operands
+                K[i][i] = cast("NDArray[np.float64]", np.linalg.solve(b_i, np.diag(poles) - a_i))
             else:
                 K[i][i] = -place_poles(a_i, b_i, poles).gain_matrix
             for j in range(n):
                 if j == i:
                     continue
                 if self.cancel_coupling:
-                    K[i][j] = -np.linalg.solve(b_i, plant.a(i, j))
+                    K[i][j] = cast("NDArray[np.float64]", -np.linalg.solve(b_i, plant.a(i, j)))
                 else:
                     K[i][j] = np.zeros((b_i.shape[1], plant.p[j]))
             L.append(observer_gain(a_i, plant.c(i), self.observer_poles[i]))
@@ -301,11 +302,13 @@ class QDCGains:
 
     def full_K(self) -> NDArray[np.float64]:  # noqa: N802 - the paper's symbol
         """The stacked state-feedback gain ``[[K_1, K_12], [K_21, K_2]]``."""
-        return np.block([list(row) for row in self.K])
+        full: NDArray[np.float64] = np.block([list(row) for row in self.K])
+        return full
 
     def full_L(self) -> NDArray[np.float64]:  # noqa: N802
         """``diag(L_1, ..., L_n)``."""
-        return block_diag(*self.L)
+        full: NDArray[np.float64] = block_diag(*self.L)
+        return full
 
 
 def observer_gain(
@@ -335,8 +338,10 @@ def observer_gain(
         phi = sum(c * np.linalg.matrix_power(A, p - k) for k, c in enumerate(coeffs))
         e_p = np.zeros((p, 1))
         e_p[-1, 0] = 1.0
-        return phi @ np.linalg.solve(obs, e_p)
-    return place_poles(A.T, C.T, np.asarray(poles, dtype=float)).gain_matrix.T
+        gain: NDArray[np.float64] = phi @ np.linalg.solve(obs, e_p)
+        return gain
+    gain = place_poles(A.T, C.T, np.asarray(poles, dtype=float)).gain_matrix.T
+    return gain
 
 
 class NetworkConfig(BaseModel):
@@ -365,7 +370,7 @@ class _LinearNetworkedController:
     @property
     def nz(self) -> int:
         """Number of controller states."""
-        return self.F.shape[0]
+        return int(self.F.shape[0])
 
     def derivative(self, z: NDArray[np.float64], m: NDArray[np.float64]) -> NDArray[np.float64]:
         """Controller flow ``dz/dt`` between updates."""
@@ -592,7 +597,7 @@ class LocalQDC:
     @property
     def nz(self) -> int:
         """Number of controller states."""
-        return self.F.shape[0]
+        return int(self.F.shape[0])
 
 
 class CentralizedNetwork(_LinearNetworkedController):
@@ -718,7 +723,8 @@ class LinearRun:
     def log_norms(self) -> NDArray[np.float64]:
         """``log |w_k|`` (exact also where ``w`` itself would overflow)."""
         with np.errstate(divide="ignore"):
-            return np.log(np.linalg.norm(self.v, axis=1)) + self.log_scale
+            norms: NDArray[np.float64] = np.log(np.linalg.norm(self.v, axis=1)) + self.log_scale
+            return norms
 
     def growth_rate(self) -> float:
         """Average log-growth of ``|w|`` per period over the second half of the run.
@@ -778,7 +784,8 @@ def simulate_linear(
             scale += float(np.log(nrm))
         out[k] = w
         log_scale[k] = scale
-    return LinearRun(t=np.arange(n_periods + 1) * h, v=out, log_scale=log_scale, nx=nx)
+    t = cast("NDArray[np.float64]", np.arange(n_periods + 1) * h)  # int64 * float is float64
+    return LinearRun(t=t, v=out, log_scale=log_scale, nx=nx)
 
 
 @dataclass(frozen=True)

@@ -166,7 +166,7 @@ def build_multi_loop_law(
         The shortest nominal sampling period of the loops.
     context : MultiLoopContext, optional
         The loops' signals and the controller's links
-        (:meth:`runtime.scenario.Scenario.multi_loop_context`).
+        (:meth:`scenario.Scenario.multi_loop_context`).
     """
     cls = _law_class(config)
     if not getattr(cls, "multi_loop", False):

@@ -107,7 +107,7 @@ class RunRecord:
 
 Simulate = Callable[[Any], RunRecord]
 """Runs a validated scenario to its record (:func:`runtime.direct.simulate`): what the
-coordination agent is handed, and what a node kind's build is given (``runtime.scenario``)."""
+coordination agent is handed, and what a node kind's build is given (``scenario``)."""
 
 
 def loop_metrics(rec: RunRecord, name: str) -> dict[str, Any]:

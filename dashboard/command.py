@@ -75,7 +75,7 @@ def spawn(run_dir: Path, port: int) -> subprocess.Popen[bytes]:
     observer runs at a lower CPU priority (``nice`` 10), so on a loaded machine the run's
     nodes go first."""
     return subprocess.Popen(
-        [sys.executable, "-m", "runtime.cli", "dashboard", str(run_dir), "--port", str(port)],
+        [sys.executable, "-m", "cli", "dashboard", str(run_dir), "--port", str(port)],
         stdin=subprocess.DEVNULL,
         preexec_fn=_lower_priority,
     )

@@ -42,8 +42,8 @@ from dashboard.feed import HistoryFeed
 from dashboard.view import RunView
 from runtime.artefacts import HISTORY_FILE, RUN_FILE, SCENARIO_FILE
 from runtime.inject import send
-from runtime.scenario import load_scenario
 from runtime.security import DASHBOARD, login_of
+from scenario import load_scenario
 
 __all__ = ["Dashboard", "create_app", "serve", "STATIC"]
 

@@ -37,7 +37,7 @@ from bus_schemas import keys
 from core.time import to_units
 from dashboard.feed import Row
 from gateway.topology import Topology
-from runtime.scenario import GatewayNodeConfig, Scenario
+from scenario import GatewayNodeConfig, Scenario
 
 __all__ = ["RunView", "EVENT_TYPES", "decimate"]
 

@@ -3,9 +3,9 @@
 ``on_files`` adds these pages to the site without writing them to disk, so they cannot go stale
 or be edited by hand:
 
-* ``reference/cli.md`` from the argparse parser of :mod:`runtime.cli` (``build_parser``);
-* ``reference/scenario/*.md`` from the pydantic models: :class:`runtime.scenario.Scenario`, one
-  page per node kind of :data:`runtime.scenario.NODE_KINDS`, the plant models
+* ``reference/cli.md`` from the argparse parser of :mod:`cli.main` (``build_parser``);
+* ``reference/scenario/*.md`` from the pydantic models: :class:`scenario.Scenario`, one
+  page per node kind of :data:`scenario.kinds.NODE_KINDS`, the plant models
   (:data:`plants.registry.MODELS`), control laws (:data:`controllers.registry.LAWS`) and per-hop
   delay models (:data:`gateway.delay_models.DELAY_MODELS`): every field with its type, unit (where
   the description ends with one), default, bounds and description;
@@ -38,12 +38,12 @@ from pydantic.fields import FieldInfo
 
 from bus_schemas import bodies, keys
 from bus_schemas.envelope import SCHEMA_VERSION, Envelope
+from cli.main import EXAMPLES, build_parser
 from controllers.registry import LAWS
 from core.registry import Registry
 from gateway.delay_models import DELAY_MODELS
 from plants.registry import MODELS
-from runtime.cli import EXAMPLES, build_parser
-from runtime.scenario import NODE_KINDS, Scenario
+from scenario import NODE_KINDS, Scenario
 
 __all__ = ["pages", "on_config", "on_files", "SCENARIO_DIR", "kind_page", "field_names"]
 
@@ -287,7 +287,7 @@ def _scenario_index() -> str:
     lines = [
         "# Scenario reference",
         "",
-        "A scenario file is YAML validated into `runtime.scenario.Scenario` before anything runs "
+        "A scenario file is YAML validated into `scenario.Scenario` before anything runs "
         "(see [Scenario files](../../scenarios.md)). `wncs schema` prints the same models as a "
         "JSON Schema.",
         "",
@@ -409,7 +409,7 @@ def cli_page() -> str:
     lines = [
         "# Command line reference",
         "",
-        "Generated from the argparse parser of `runtime/cli.py` when the site is built; "
+        "Generated from the argparse parser of `cli/` when the site is built; "
         "`wncs COMMAND --help` prints the same.",
         "",
         "```text",

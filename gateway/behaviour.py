@@ -53,7 +53,7 @@ __all__ = ["NetworkBehaviour", "NetworkSpec"]
 @dataclass(frozen=True)
 class NetworkSpec:
     """What a network or gateway node needs of its scenario, computed once
-    (:func:`runtime.specs.network_spec`).
+    (:func:`scenario.views.network_spec`).
 
     Attributes
     ----------

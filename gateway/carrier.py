@@ -22,11 +22,12 @@ paths, and the bus engines and the direct engine deliver identical packets at id
 
 from __future__ import annotations
 
+import enum
 import math
 import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -44,10 +45,18 @@ __all__ = ["CarrierSpec", "PathCarrier", "Carried", "SENSOR", "ACTUATOR", "LINK"
 SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
 _STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
 _PING_STREAM = {SENSOR: 2, ACTUATOR: 3, LINK: 5}  # and of its ping probes
-_DONE = object()  # a replayed trace has run out
 _MODEL_STREAM = {SENSOR: 6, ACTUATOR: 7, LINK: 8}  # and of its predicted delay distribution
 _TSCH_LINKS_STREAM = 9  # a TSCH network's shadowing draws
 _TSCH_STREAM = 10  # and its MAC's
+
+
+class _Done(enum.Enum):
+    """The sentinel of a replayed trace that has run out (an enum, so that it has a type)."""
+
+    DONE = enum.auto()
+
+
+_DONE: Final = _Done.DONE  # a replayed trace has run out
 
 
 @dataclass(frozen=True)
@@ -65,7 +74,7 @@ class Carried:
 
 @dataclass(frozen=True)
 class CarrierSpec:
-    """What one network node's paths are made of (:func:`runtime.specs.carrier_spec`).
+    """What one network node's paths are made of (:func:`scenario.views.carrier_spec`).
 
     Attributes
     ----------
@@ -355,9 +364,9 @@ class PathCarrier:
         down)."""
         if (loop, direction) in self._const:
             return 0
-        route = self.routes.get((loop, direction), self)
-        if route is self:
+        if (loop, direction) not in self.routes:
             return 0  # an actuator-only loop over a gateway: no sensor path
+        route = self.routes[loop, direction]
         return -1 if route is None else route.n_hops
 
     def deliver(self, loop: str, direction: str, t_ready: int) -> int | None:

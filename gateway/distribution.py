@@ -22,7 +22,7 @@ for display.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,7 +62,10 @@ PREDICTION_PACKETS = 4000
 
 
 def from_delays(
-    delays: NDArray[np.float64] | Sequence[float], sent: int, loss: float, source: str
+    delays: NDArray[np.float64] | Sequence[float],
+    sent: int,
+    loss: float,
+    source: Literal["model", "measured"],
 ) -> DelayDistribution:
     """The distribution of these delivered ``delays`` (time units) out of ``sent`` packets, with
     loss probability ``loss``; ``None``-free: needs at least one delay."""
@@ -75,7 +78,7 @@ def from_delays(
     edges = np.linspace(lo, hi if hi > lo else lo + 1e-6, BINS + 1)
     counts, _ = np.histogram(d, bins=edges)
     return DelayDistribution(
-        source=source,  # type: ignore[arg-type]
+        source=source,
         probabilities=PROBABILITIES,
         delays=tuple(float(v) for v in q),
         loss=float(min(max(loss, 0.0), 1.0)),

@@ -72,7 +72,8 @@ class Hop:
     @property
     def mean_delay(self) -> float:
         """Mean delay of the hop for delivered packets, retries included (time units)."""
-        return self.delay.mean_hop(self.prr, self.retry_limit)
+        mean: float = self.delay.mean_hop(self.prr, self.retry_limit)  # DelayModel: typed Any
+        return mean
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, model_validator
@@ -275,7 +275,7 @@ TopologyEvent = Annotated[
 _EVENT = TypeAdapter(TopologyEvent)
 
 
-def parse_event(data: Mapping) -> TopologyEvent:
+def parse_event(data: Mapping[str, Any]) -> TopologyEvent:
     """Validate a plain mapping (e.g. an ``events/...`` message body) into an event."""
     return _EVENT.validate_python(data)
 
@@ -315,7 +315,7 @@ class Topology:
         self._routes: dict[str, Route | None] | None = None
 
     @classmethod
-    def from_dict(cls, data: Mapping) -> Topology:
+    def from_dict(cls, data: Mapping[str, Any]) -> Topology:
         """Build from a plain mapping (e.g. a YAML section), validating it."""
         return cls(TopologyConfig.model_validate(data))
 
@@ -491,7 +491,7 @@ class Topology:
 
     # --------------------------------------------------------------- events
 
-    def apply(self, event: TopologyEvent | Mapping) -> Reconfiguration:
+    def apply(self, event: TopologyEvent | Mapping[str, Any]) -> Reconfiguration:
         """Apply a reconfiguration event (a model or a mapping) and recompute the routes.
 
         Raises

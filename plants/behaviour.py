@@ -51,7 +51,7 @@ class _Diverged(Exception):
 
 @dataclass(frozen=True)
 class PlantSpec:
-    """What a plant node needs of its scenario, computed once (:func:`runtime.specs.plant_spec`).
+    """What a plant node needs of its scenario, computed once (:func:`scenario.views.plant_spec`).
 
     Attributes
     ----------

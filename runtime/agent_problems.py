@@ -20,7 +20,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 __all__ = ["WORKED_SCENARIO", "jcstr_loops"]
 

@@ -30,7 +30,7 @@ from agents.wncsca.jitter import loop_margins
 from agents.wncsca.plots import fig10
 from gateway.carrier import PathCarrier
 from runtime.direct import loop_model
-from runtime.specs import agent_spec, carrier_spec
+from scenario.views import agent_spec, carrier_spec
 
 __all__ = ["analyze", "parse_delays"]
 

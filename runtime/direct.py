@@ -1,6 +1,6 @@
 """The ``direct`` engine: a scenario's nodes run in one process, no bus (DESIGN section 3).
 
-:data:`runtime.scenario.NODE_KINDS` says how to build the behaviour of a node of each kind (the
+:data:`scenario.kinds.NODE_KINDS` says how to build the behaviour of a node of each kind (the
 scenario's ``kind:``); :func:`behaviour_of` builds one, for every engine: the bus engines put it
 on the kernel (:mod:`runtime.nodes`), :func:`simulate` runs them all on the
 :class:`~runtime.engine.DirectEngine`, round by round as the clock would, so its traces,
@@ -9,8 +9,9 @@ plants, controllers, networks, the coordination agent and the monitor. The recor
 the messages in the historian's order by the same :class:`~runtime.records.RecordBuilder` that
 rebuilds a bus run's record from its history.
 
-The coordination agent is handed a simulator of its loops (:class:`runtime.specs.ScenarioSimulator`)
-that runs on this same engine: :func:`simulate` itself.
+The coordination agent is handed a simulator of its loops
+(:class:`scenario.views.ScenarioSimulator`) that runs on this same engine: :func:`simulate`
+itself.
 """
 
 from __future__ import annotations
@@ -23,10 +24,9 @@ from agents.wncsca.model import LoopModel
 from core.behaviour import Behaviour
 from core.record import RunRecord
 from core.time import to_ticks
-from runtime import specs
 from runtime.engine import DirectEngine, Message
 from runtime.records import RecordBuilder
-from runtime.scenario import HISTORIAN, NODE_KINDS, Scenario
+from scenario import HISTORIAN, NODE_KINDS, Scenario, views
 
 __all__ = [
     "behaviour_of",
@@ -85,9 +85,9 @@ def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
 
 def loop_model(scenario: Scenario, config: WncscaConfig | None = None) -> LoopModel:
     """The coordination agent's model of ``scenario``'s loops, simulated on this engine."""
-    return specs.loop_model(scenario, config, simulate=simulate)
+    return views.loop_model(scenario, config, simulate=simulate)
 
 
 def coordinator(scenario: Scenario, config: WncscaConfig | None = None) -> Coordinator:
     """The coordination agent of ``scenario``, its model simulated on this engine."""
-    return specs.coordinator(scenario, config, simulate=simulate)
+    return views.coordinator(scenario, config, simulate=simulate)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from bus_schemas import keys
 from core.record import RunRecord
-from runtime.scenario import ControllerNodeConfig, Scenario
+from scenario import ControllerNodeConfig, Scenario
 
 __all__ = ["Execution", "multi_loop_executions"]
 

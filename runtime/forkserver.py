@@ -38,8 +38,8 @@ from kernel.bus import open_client
 from kernel.lifetime import die_with_parent
 from runtime.affinity import cpus_of, parse_affinity, pin
 from runtime.nodes import bus_node, check_node, clock_runner
-from runtime.scenario import Scenario, load_scenario
 from runtime.security import use_node_credentials
+from scenario import Scenario, load_scenario
 
 __all__ = ["run_node", "main"]
 

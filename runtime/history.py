@@ -47,7 +47,7 @@ from bus_schemas import (
 from bus_schemas.errors import SchemaError
 from core.record import RunRecord
 from runtime.records import RecordBuilder
-from runtime.scenario import Scenario
+from scenario import Scenario
 
 __all__ = [
     "SCHEMA",

@@ -27,7 +27,7 @@ from gateway.topology import Topology, parse_event
 from kernel.bus import put_when_heard
 from kernel.clock import INJECT_SOURCE, Interpreter
 from runtime.artefacts import SCENARIO_FILE
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 __all__ = ["parse_fields", "build_request", "send", "interpreter"]
 

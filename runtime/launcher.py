@@ -53,7 +53,6 @@ from runtime.forked import ForkServer
 from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
 from runtime.report import save_record, write_plots, write_summary
-from runtime.scenario import Scenario, load_scenario
 from runtime.security import (
     LAUNCHER,
     SECURITY_ENV,
@@ -66,6 +65,7 @@ from runtime.security import (
     warn_insecure,
 )
 from runtime.security import prepare as prepare_security
+from scenario import Scenario, load_scenario
 
 __all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
 
@@ -102,7 +102,7 @@ def _wncs_executable() -> list[str]:
     if script.exists():
         return [str(script)]
     found = shutil.which("wncs")
-    return [found] if found else [sys.executable, "-m", "runtime.cli"]
+    return [found] if found else [sys.executable, "-m", "cli"]
 
 
 def node_command(

@@ -16,7 +16,7 @@ from runtime.direct import behaviour_of, check_node
 from runtime.historian import HistorianNode
 from runtime.inject import interpreter
 from runtime.ownership import OBSERVERS, publishers
-from runtime.scenario import HISTORIAN, Scenario
+from scenario import HISTORIAN, Scenario
 
 __all__ = ["bus_node", "check_node", "clock_spec", "clock_runner"]
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from agents.monitor.config import MonitorNodeConfig
 from bus_schemas import keys
-from runtime.scenario import HISTORIAN, ControllerNodeConfig, OperatorNodeConfig, Scenario
+from scenario import HISTORIAN, ControllerNodeConfig, OperatorNodeConfig, Scenario
 
 __all__ = ["CLOCK", "OBSERVERS", "publishers", "readers", "owners_of"]
 

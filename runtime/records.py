@@ -14,8 +14,8 @@ from typing import Any
 from bus_schemas import keys
 from core.record import LinkRecord, LoopRecord, PlantRecord, RunRecord
 from core.time import to_ticks
-from runtime.scenario import Scenario
-from runtime.specs import path_hops
+from scenario import Scenario
+from scenario.views import path_hops
 
 __all__ = ["RecordBuilder"]
 

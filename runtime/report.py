@@ -16,7 +16,7 @@ from core.time import to_units
 from runtime.artefacts import HISTORY_FILE, RUN_FILE, SCENARIO_FILE
 from runtime.executions import multi_loop_executions
 from runtime.history import load_record
-from runtime.scenario import ControllerNodeConfig, Scenario, load_scenario
+from scenario import ControllerNodeConfig, Scenario, load_scenario
 
 __all__ = [
     "SUMMARY_FILE",

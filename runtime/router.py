@@ -33,8 +33,8 @@ from kernel.audit import LogCapture, Refused
 from kernel.bus import open_router
 from kernel.security import SECURITY_DIR, router_settings
 from runtime.artefacts import REFUSED_LOG, RUN_FILE, write_json
-from runtime.scenario import load_scenario
 from runtime.security import check_tls, listen_names, pick_endpoint, prepare, warn_insecure
+from scenario import load_scenario
 
 __all__ = ["serve_router", "router_run", "router_at"]
 

@@ -2,7 +2,7 @@
 
 :func:`scale_scenario` writes the mapping of a scenario with ``n`` loops, each its own
 controller, every sensor path over a WSN; ``wncs scale N --out FILE`` writes it as a scenario
-file (validated first, like any file :func:`runtime.scenario.load_scenario` reads). With
+file (validated first, like any file :func:`scenario.load.load_scenario` reads). With
 ``tank`` and ``jcstr`` the loops are independent (each tank, each reactor's pair, its own
 plant); with ``tank_train`` they are the coupled loops of one plant.
 
@@ -56,7 +56,7 @@ from typing import Any
 import yaml
 
 from plants.tank_train import TankTrain, TankTrainParams
-from runtime.scenario import Scenario, parse_scenario
+from scenario import Scenario, parse_scenario
 
 __all__ = ["PLANTS", "scale_scenario", "scale_yaml", "write_scale"]
 

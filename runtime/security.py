@@ -40,7 +40,7 @@ from kernel.security import (
 )
 from kernel.tls import name_of_endpoint, router_names
 from runtime.ownership import CLOCK, OBSERVERS, publishers, readers
-from runtime.scenario import Scenario
+from scenario import Scenario
 
 __all__ = [
     "SECURITY_ENV",

@@ -6,7 +6,7 @@ A grid axis is ``--grid dotted.path=VALUES``: ``a:b:n`` is ``n`` evenly spaced v
 significant digits, so ``0.1:0.4:7`` gives ``0.15``, not ``0.15000000000000002``), ``x,y,z`` a list
 of values, each parsed as YAML like a ``--set`` value. The grid is the Cartesian product of the
 axes, in the order given (the last axis varies fastest). Each point is the scenario with the
-``--set`` overrides and then the point's values applied through :mod:`runtime.overrides`, exactly
+``--set`` overrides and then the point's values applied through :mod:`scenario.overrides`, exactly
 as ``wncs run --set`` applies them, and validated like the file: a bad point is refused before
 anything runs, naming the ``--grid`` argument and the value.
 
@@ -32,9 +32,9 @@ from typing import Any, TextIO
 from core.errors import ConfigError
 from core.record import summarize
 from runtime.direct import simulate
-from runtime.overrides import Override, parse_override
-from runtime.scenario import load_scenario
-from runtime.yaml_positions import read_yaml
+from scenario import load_scenario
+from scenario.overrides import Override, parse_override
+from scenario.yaml_positions import read_yaml
 
 __all__ = [
     "Axis",

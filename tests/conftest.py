@@ -17,7 +17,7 @@ import yaml
 from bus_schemas import Tick, TickLog, codec
 from kernel.bus import open_router
 from runtime.launcher import launch
-from runtime.scenario import NODE_KINDS
+from scenario import NODE_KINDS
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

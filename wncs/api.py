@@ -11,7 +11,7 @@
     result.plot()                              # into the current matplotlib figure
 
 Every change goes through validation: :func:`load` and :func:`with_values` apply dotted-path
-values exactly as ``wncs run --set`` does (:mod:`runtime.overrides`) and validate the result,
+values exactly as ``wncs run --set`` does (:mod:`scenario.overrides`) and validate the result,
 so ``loops.level.tau_s = -0.1`` is refused naming the field, as in the file. (A pydantic
 ``model_copy(update=...)`` would skip validation: use :func:`with_values` instead.)
 
@@ -40,11 +40,11 @@ from core.time import to_units
 from runtime import export
 from runtime.direct import simulate
 from runtime.launcher import ENGINES, launch
-from runtime.overrides import Override, apply_overrides, parse_override
 from runtime.report import SUMMARY_FILE, draw_loop, load_run
-from runtime.scenario import Scenario, load_scenario, parse_scenario
 from runtime.sweep import Axis
 from runtime.sweep import sweep as _sweep
+from scenario import Scenario, load_scenario, parse_scenario
+from scenario.overrides import Override, apply_overrides, parse_override
 
 __all__ = [
     "load",

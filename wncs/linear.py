@@ -25,7 +25,7 @@ from controllers.pi_linear import pi_state_space
 from controllers.registry import uses_feedforward
 from plants.linearization import equilibrium, linearize
 from plants.sampled import sampled_with_delay
-from runtime.scenario import Scenario
+from scenario import Scenario
 
 if TYPE_CHECKING:
     import control

@@ -1,6 +1,6 @@
 """Plant-wide audit: many loops' routine data assessed at once and ranked, worst first.
 
-``wncs assess DIR_OR_GLOB --config loops.yaml`` (:mod:`agents.monitor.command`). The files are the
+``wncs assess DIR_OR_GLOB --config loops.yaml`` (:mod:`runtime.assess`). The files are the
 CSV files of a directory (``*.csv``, not recursive) or those a glob matches; ``loops.yaml`` says
 which columns of which file make a loop::
 

@@ -127,7 +127,7 @@ def run_assessment(
 @dataclass(frozen=True)
 class MonitorSpec:
     """What a monitor node needs of its scenario, computed once
-    (:func:`runtime.specs.monitor_spec`).
+    (:func:`scenario.views.monitor_spec`).
 
     Attributes
     ----------

@@ -9,7 +9,7 @@ Columns of a run
     saw, measurement noise included. The primary is always a loop; its samples define the rows.
 ``LOOP.sp``
     The loop's set point in force when each primary sample was handled (from operations or from
-    the coordination agent, :meth:`runtime.scenario.Scenario.setpoint_key`).
+    the coordination agent, :meth:`scenario.Scenario.setpoint_key`).
 ``PLANT.STATE``
     A plant state on its monitoring grid (``plant/<p>/state``: the true value, no measurement
     noise), at the grid point at or before each primary sample's sampling instant (with the grid
@@ -55,7 +55,7 @@ class RunLoop:
 
 @dataclass(frozen=True)
 class RunShape:
-    """What a run's columns are made of (:func:`runtime.specs.run_shape` computes it from the
+    """What a run's columns are made of (:func:`scenario.views.run_shape` computes it from the
     scenario): its loops, its plants' states, its end."""
 
     loops: Mapping[str, RunLoop]

@@ -3,12 +3,12 @@
 The monitor node (:mod:`agents.monitor.behaviour`) and ``wncs assess RUN_DIR`` both build their
 series with :class:`RunSeries` from the same messages in the same order (the node as it handles
 them, the command from ``history.sqlite``, where the historian stored them in that order:
-:mod:`agents.monitor.run_files`), so they assess exactly the same numbers. The columns are named
+:mod:`runtime.run_files`), so they assess exactly the same numbers. The columns are named
 as in :mod:`agents.monitor.columns`: ``LOOP``, ``LOOP.sp``, ``PLANT.STATE``.
 
 Bus-free and file-free: messages come in through :meth:`RunSeries.feed` (or, from a direct run's
 record in memory, :func:`feed_run_record`); reading a run directory is
-:mod:`agents.monitor.run_files`'s (the application layer).
+:mod:`runtime.run_files`'s (the application layer).
 
 Window
 ------
@@ -140,7 +140,7 @@ class RunSeries:
     Parameters
     ----------
     run : RunShape
-        The run's loops, plant states and set-point keys (:func:`runtime.specs.run_shape`).
+        The run's loops, plant states and set-point keys (:func:`scenario.views.run_shape`).
     loop : str
         The primary: this loop's delivered samples.
     columns : sequence of str

@@ -39,7 +39,7 @@ class DisturbanceAt(NamedTuple):
 
 @dataclass(frozen=True)
 class OperatorSpec:
-    """The scenario's schedules, in ticks (:func:`runtime.specs.operator_spec`)."""
+    """The scenario's schedules, in ticks (:func:`scenario.views.operator_spec`)."""
 
     setpoints: tuple[SetpointAt, ...] = ()
     modes: tuple[ModeAt, ...] = ()

@@ -62,7 +62,8 @@ class DelayedUpdates:
     @property
     def reset_rows(self) -> NDArray[np.bool_]:
         """The rows an update resets (``D`` of the module docstring)."""
-        return np.any(self.Rcl != np.eye(self.Rcl.shape[0]), axis=1)
+        rows: NDArray[np.bool_] = np.any(self.Rcl != np.eye(self.Rcl.shape[0]), axis=1)
+        return rows
 
     def monodromy(self, h: float, d: float = 0.0) -> NDArray[np.float64]:
         """``M_d(h)``, the map of the state from one send instant to the next.
@@ -75,7 +76,8 @@ class DelayedUpdates:
         _check(h, d)
         rows = self.reset_rows[:, None]
         landing = np.where(rows, self.Rcl, expm(self.Acl * d))
-        return expm(self.Acl * (h - d)) @ landing
+        monodromy: NDArray[np.float64] = expm(self.Acl * (h - d)) @ landing
+        return monodromy
 
     def spectral_radius(self, h: ArrayLike, d: float = 0.0) -> NDArray[np.float64] | float:
         """``rho(M_d(h))`` for one period or an array of periods."""

@@ -53,9 +53,9 @@ says why and the fast method checks on the engine.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,12 +67,21 @@ from core.time import TICKS_PER_UNIT, to_ticks
 __all__ = ["BatchTrials"]
 
 
+class _Batched(Protocol):
+    """The class of a plant model that takes part (:class:`plants.jcstr.JCSTR`,
+    :class:`plants.tank.Tank`): its right-hand side and outputs on many plants at once, one array
+    per constant, state and input (the batch hands states x items arrays, read row by row)."""
+
+    rhs_batch: Callable[..., tuple[NDArray[np.float64], ...]]
+    outputs_batch: Callable[..., tuple[NDArray[np.float64], ...]]
+
+
 @dataclass(frozen=True)
 class _Plant:
     """One plant of the model and its loops (sorted by name), as the batch needs them."""
 
     name: str
-    kind: type
+    kind: type[_Batched]
     params: tuple[float, ...]
     x0: tuple[float, ...]
     u0: tuple[float, ...]

@@ -28,7 +28,7 @@ __all__ = ["WncscaBehaviour"]
 
 class WncscaBehaviour(Behaviour):
     """The agent node ``name`` around its core (the node kind's build,
-    :func:`runtime.specs.agent_behaviour`, hands it the coordinator of its spec)."""
+    :func:`scenario.views.agent_behaviour`, hands it the coordinator of its spec)."""
 
     def __init__(self, name: str, core: Coordinator) -> None:
         super().__init__(name)

@@ -16,7 +16,7 @@ from agents.wncsca.model import LoopModel
 
 __all__ = ["DelayBound", "delay_bounds", "largest_delay", "clear_cache"]
 
-_CACHE: dict[tuple, dict[str, DelayBound]] = {}
+_CACHE: dict[tuple[str, float, float, float], dict[str, DelayBound]] = {}
 
 
 @dataclass(frozen=True)

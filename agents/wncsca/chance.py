@@ -324,10 +324,16 @@ class LinearMonteCarlo:
         u = np.tile(self.u0, (R, 1))
 
         def forcing() -> NDArray[np.complex128]:
-            return np.einsum("rnu,ru->rn", self.ViB[stage], u) + self.Vic[stage]
+            forced: NDArray[np.complex128] = (
+                np.einsum("rnu,ru->rn", self.ViB[stage], u) + self.Vic[stage]
+            )
+            return forced
 
         def output() -> NDArray[np.float64]:
-            return np.einsum("rln,rn->rl", self.CyV[stage], z).real + self.y0[stage]
+            outputs: NDArray[np.float64] = (
+                np.einsum("rln,rn->rl", self.CyV[stage], z).real + self.y0[stage]
+            )
+            return outputs
 
         w = forcing()
         t_prev = np.zeros(R)
@@ -525,7 +531,8 @@ class ChanceModel:
         raw = self._memo.get(key)
         if raw is None:
             raw = self._memo[key] = self.linear.overshoots(per, dly)
-        return raw + np.array([self.offsets[n] for n in self.loops])
+        corrected: NDArray[np.float64] = raw + np.array([self.offsets[n] for n in self.loops])
+        return corrected
 
     def evaluate(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> Evaluation:
         """Risk overshoot of every loop: the ``(R - k_max)``-th smallest realization (``inf``

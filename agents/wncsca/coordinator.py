@@ -29,13 +29,13 @@ import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, cast
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
 from agents.wncsca.capacity import Manager, describe, path_ticks, read_capacity
 from agents.wncsca.chance import LoopLaw
-from agents.wncsca.config import MODES
+from agents.wncsca.config import MODES, LinksConfig
 from agents.wncsca.decision import (
     Decision,
     ProposalError,
@@ -97,10 +97,10 @@ class Coordinator:
     ----------
     spec : AgentSpec
         What the agent knows of its run (its configuration, judged loops, networks and links:
-        :func:`runtime.specs.agent_spec`).
+        :func:`scenario.views.agent_spec`).
     model : LoopModel
         The agent's model of its loops, handed its simulator
-        (:func:`runtime.specs.coordinator` builds both).
+        (:func:`scenario.views.coordinator` builds both).
     """
 
     def __init__(self, spec: AgentSpec, model: LoopModel) -> None:
@@ -157,21 +157,30 @@ class Coordinator:
         for group in self.link_groups:
             if any(n not in self.link_delays for n in group.links):
                 continue
-            verdict = judge_links(group, self.link_delays, self.config.links)
+            verdict = judge_links(group, self.link_delays, self._links_config())
             if verdict.verdict == "accept":
                 self.link_periods.update(verdict.periods)
             out.append(verdict)
         return out
 
+    def _links_config(self) -> LinksConfig:
+        """The ``links:`` configuration of the agent (link groups exist only with one)."""
+        if self.config.links is None:
+            raise ValueError("links: the agent has link groups but no links configuration")
+        return self.config.links
+
     # -- proposals -------------------------------------------------------------------------
     def on_proposal(self, network: str, body: Any) -> Negotiation:
         """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``."""
-        pid = body.get("id") if isinstance(body, Mapping) else None
-        valid_id = isinstance(pid, int) and not isinstance(pid, bool) and pid >= 0
+        raw_id = body.get("id") if isinstance(body, Mapping) else None
+        valid_id = isinstance(raw_id, int) and not isinstance(raw_id, bool) and raw_id >= 0
         if network not in self.carried or not self.spec.is_wireless(network):
-            return self._refused(network, pid if valid_id else None, f"{network!r} is no gateway")
+            return self._refused(
+                network, raw_id if valid_id else None, f"{network!r} is no gateway"
+            )
         if not isinstance(body, Mapping) or not valid_id:
             return self._refused(network, None, "id: missing or not an integer >= 0")
+        pid = cast(int, raw_id)  # valid_id: an int >= 0 (mypy does not narrow through it)
         others = {n: d for n, d in self.delays.items() if n not in self.carried[network]}
         missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
         for n in missing:  # a loop of another gateway with no accepted configuration yet
@@ -306,7 +315,7 @@ class Coordinator:
             if not any(self.spec.links[n].network == network for n in group.links):
                 continue
             trial = {**self.link_delays, **delays}
-            out.append(judge_links(group, trial, self.config.links))
+            out.append(judge_links(group, trial, self._links_config()))
         return out
 
     def on_no_alternative(self, network: str, proposal: int | None) -> Decision:
@@ -385,7 +394,7 @@ class Coordinator:
                 now,
             )
         when = now if t_apply is None else max(int(t_apply), now)
-        judged = ()
+        judged: tuple[str, ...] = ()
         if self.config.method == "chance" and loop in self.loops:
             step = judge_step(
                 self.model,

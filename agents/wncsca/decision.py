@@ -46,9 +46,9 @@ class Decision:
     proposal: int | None
     verdict: str
     reasons: tuple[str, ...]
-    delays: dict[str, float] = field(default_factory=dict)
-    bounds: dict[str, float] = field(default_factory=dict)
-    estimates_used: dict[str, str] = field(default_factory=dict)
+    delays: Mapping[str, float] = field(default_factory=dict)
+    bounds: Mapping[str, float] = field(default_factory=dict)
+    estimates_used: Mapping[str, str] = field(default_factory=dict)
     offending: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
@@ -81,7 +81,7 @@ def read_distribution(path: str, raw: Any) -> DelayDistribution:
 
 def path_delay(
     path: str, entry: Any, preferred: str, quantile: float = 0.95
-) -> tuple[float | None, str | None]:
+) -> tuple[float, str] | tuple[None, None]:
     """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down.
 
     ``preferred="quantile"``: the ``quantile`` of the entry's delay ``distribution`` (a
@@ -150,10 +150,11 @@ def control_path_delays(
         if direction not in _DIRECTIONS:
             raise ProposalError(f"paths.{path}: unknown direction {direction!r}")
         value, name = path_delay(path, paths[path], preferred, quantile)
-        if value is None or (loop in delays and delays[loop] is None):
+        so_far = delays.get(loop, 0.0)  # None: another path of the loop is down
+        if value is None or name is None or so_far is None:
             delays[loop] = None
             continue
-        delays[loop] = delays.get(loop, 0.0) + value
+        delays[loop] = so_far + value
         used[f"{loop}.{direction}"] = name
     missing = [n for n in loops if f"{n}.sensor" not in paths]
     if missing:

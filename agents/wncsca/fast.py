@@ -91,7 +91,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.linalg
@@ -224,8 +224,13 @@ class _Modal:
             self.ViGw = self.Vi @ Gw
 
 
-def phi1(z: NDArray[np.complex128], ez: NDArray[np.complex128] | None = None) -> Any:
-    """``(exp(z) - 1) / z`` (1 at 0); ``ez = exp(z)`` when already known."""
+def phi1(
+    z: NDArray[np.complex128] | NDArray[np.float64],
+    ez: NDArray[np.complex128] | NDArray[np.float64] | None = None,
+) -> Any:
+    """``(exp(z) - 1) / z`` (1 at 0); ``ez = exp(z)`` when already known. ``z`` is complex, or
+    real where the eigenvalues are (``np.linalg.eig`` returns real eigenvalues as a real
+    array)."""
     if ez is None:
         ez = np.exp(z)
     small = np.abs(z) < 1e-5
@@ -322,7 +327,8 @@ class _Models:
         self, mid: NDArray[np.int64], t: NDArray[np.float64], dw: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         """Per item ``Gamma(t) Gw dw``."""
-        return np.einsum("inw,iw->in", self.step(mid, t)[2], dw)
+        gw: NDArray[np.float64] = np.einsum("inw,iw->in", self.step(mid, t)[2], dw)
+        return gw
 
     def rows(
         self, mid: NDArray[np.int64], cy: NDArray[np.float64], t: NDArray[np.float64]
@@ -435,7 +441,8 @@ class LinearPredictor:
                 sp.append(tuple(nxt))
                 changes.append(n)
         lins = [plant.linearization(v) for v in sp]
-        pattern = sum(np.abs(lin[0]) > 0 for lin in lins)
+        # a sum of boolean arrays from 0 (lins is not empty): the count of each entry, an int array
+        pattern = cast("NDArray[np.int64]", sum(np.abs(lin[0]) > 0 for lin in lins))
         sensor = plant.y_index[loop]
         states = set(np.flatnonzero(sum(np.abs(lin[2][sensor]) > 0 for lin in lins)).tolist())
         grown = True
@@ -479,7 +486,8 @@ class LinearPredictor:
         os_items = self._simulate(loop, np.repeat(ticks, self.n_phases, axis=0))
         self.predictions += 1
         self.items += len(os_items)
-        return os_items.reshape(len(periods), self.n_phases).max(axis=1)
+        worst: NDArray[np.float64] = os_items.reshape(len(periods), self.n_phases).max(axis=1)
+        return worst
 
     # -- the simulation of one batch ----------------------------------------------------------
     def _pade_of(self, delay_ticks: int) -> tuple[NDArray[np.float64], ...]:
@@ -614,7 +622,8 @@ class LinearPredictor:
         def count_le(times: NDArray[np.int64]) -> NDArray[np.int64]:
             """Number of (sorted) steps at or before each time (items x ...)."""
             shape = (n_items,) + (1,) * (times.ndim - 1) + (n_steps,)
-            return np.sum(t_sorted.reshape(shape) <= times[..., None], axis=-1)
+            count: NDArray[np.int64] = np.sum(t_sorted.reshape(shape) <= times[..., None], axis=-1)
+            return count
 
         k_max = int((self.end // hi).max()) + 1
         kk = np.arange(k_max, dtype=np.int64)
@@ -733,8 +742,9 @@ class LinearPredictor:
         m_idx = np.maximum(m_exec, 0)
         later = m_exec > 0  # the first execution does not integrate (controllers.pi)
         not_ok = ~valid
-        all_ok = valid.all(axis=0).tolist()
-        all_later = later.all(axis=0).tolist()
+        # per period (numpy types a reduction's tolist() as bool | Any: a list here, axis given)
+        all_ok = cast("list[bool]", valid.all(axis=0).tolist())
+        all_later = cast("list[bool]", later.all(axis=0).tolist())
         lo_v, hi_v = law.u_min, law.u_max
         with np.errstate(over="ignore", invalid="ignore"):
             for k in range(k_max):
@@ -1010,7 +1020,8 @@ class _Solver:
 
     def energy_of(self, rows: NDArray[np.float64]) -> NDArray[np.float64]:
         w = np.array([self.weights[n] for n in self.loops])
-        return np.sum(w[None, :] / np.atleast_2d(rows), axis=1)
+        energy: NDArray[np.float64] = np.sum(w[None, :] / np.atleast_2d(rows), axis=1)
+        return energy
 
     def predicted(self, periods: Mapping[str, float]) -> dict[str, float]:
         vec = self.vector(periods)[None, :]
@@ -1159,7 +1170,9 @@ class _Solver:
         rows = self.vector(periods)[None, :]
         # the loops the calibration moved since the last check often end a grid step from here:
         # their neighbours ride along in this check's batches (memoised, no batch of their own)
-        moved = np.flatnonzero(rows[0] != self.vector(self.checked[-1][0])) if self.checked else []
+        moved: NDArray[np.intp] | list[int] = (
+            np.flatnonzero(rows[0] != self.vector(self.checked[-1][0])) if self.checked else []
+        )
         if len(moved):
             cfg = self.model.config
             ahead = np.repeat(rows, 2 * len(moved), axis=0)

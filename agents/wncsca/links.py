@@ -19,13 +19,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from agents.update_period.delay import DelayedUpdates, HRange, find_h_range
 from agents.update_period.sampled import SampledQDC
 from agents.wncsca.config import LinksConfig
+
+if TYPE_CHECKING:
+    from controllers.qdc import LinearUnits, QDCNetwork
 
 __all__ = ["Link", "LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
 
@@ -147,6 +150,8 @@ def link_groups(
                     f"nodes.{c}.law: describes another networked loop than {ctrls[0]}'s; the "
                     "linked controllers must share the design settings"
                 )
+        if system is None:
+            raise ValueError(f"links: the group of {ctrls} has no controller to analyse")
         names = tuple(sorted(n for n, lk in links.items() if lk.from_ in ctrls or lk.to in ctrls))
         sampled = _sampled(tau_s, ctrls, law) if analysis == "sampled" else None
         groups.append(LinkGroup("+".join(ctrls), tuple(ctrls), names, system, sampled))
@@ -165,7 +170,8 @@ def _sampled(tau_s: Callable[[str], float], ctrls: list[str], law: Any) -> Sampl
             f"nodes.{ctrls[0]}.law: type {type(law).__name__} offers no networked_model(); use "
             "links.analysis: spectral_radius"
         )
-    return SampledQDC.from_law_parts(*law.networked_model(), taus[ctrls[0]])
+    parts: tuple[LinearUnits, QDCNetwork] = law.networked_model()  # plant, network
+    return SampledQDC.from_law_parts(*parts, taus[ctrls[0]])
 
 
 def judge_links(group: LinkGroup, delays: Mapping[str, float], config: LinksConfig) -> LinkVerdict:

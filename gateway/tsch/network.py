@@ -501,13 +501,13 @@ class TschNetwork:
                 rx_frames[b] = rx_frames.get(b, 0.0) + per_frame * delivered
         out = {}
         for node in sorted(self.topology.nodes):
-            rx = rx_frames.get(node, 0.0)
-            listen = max(listens.get(node, 0.0), rx)
+            received = rx_frames.get(node, 0.0)
+            listen = max(listens.get(node, 0.0), received)
             busy = listen + tx_slots.get(node, 0.0)
             out[node] = (
                 tx_cost.get(node, 0.0)
-                + rx * radio.charge_uC("rx_ack", slot_s)
-                + (listen - rx) * radio.charge_uC("idle", slot_s)
+                + received * radio.charge_uC("rx_ack", slot_s)
+                + (listen - received) * radio.charge_uC("idle", slot_s)
                 + max(length - busy, 0.0) * radio.charge_uC("sleep", slot_s)
             )
         return out

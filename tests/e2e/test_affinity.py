@@ -14,7 +14,7 @@ import pytest
 from kernel.node import BusNode
 from runtime.history import messages_digest
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 
 USABLE = os.sched_getaffinity(0)

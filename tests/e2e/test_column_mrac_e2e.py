@@ -11,7 +11,7 @@ import pytest
 
 from core.record import summarize
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_column_mrac_bus import assert_traces_equal
 

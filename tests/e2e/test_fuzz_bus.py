@@ -27,7 +27,7 @@ from bus_schemas.errors import SchemaError
 from kernel.bus import open_client
 from runtime.history import body_schema
 from runtime.ownership import owners_of, publishers
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, last_tick
 from tests.e2e.test_runs import start_run, traces, wait_for_virtual_time, wncs_run
 

@@ -20,8 +20,8 @@ from core.record import summarize
 from kernel.bus import open_client
 from kernel.security import SECURITY_DIR
 from runtime.history import load_record, messages_digest
-from runtime.scenario import load_scenario
 from runtime.security import SECURITY_ENV, credentials_of
+from scenario import load_scenario
 from tests.conftest import BENCHMARK, wait_until
 from tests.e2e.test_runs import WNCS, assert_same_traces, traces, wncs_run
 

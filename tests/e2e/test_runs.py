@@ -24,8 +24,8 @@ from core.record import summarize
 from kernel.bus import open_client
 from runtime.direct import simulate
 from runtime.history import load_record, messages_digest
-from runtime.scenario import load_scenario
 from runtime.security import DASHBOARD, credentials_of
+from scenario import load_scenario
 from tests.conftest import (
     BENCHMARK,
     DELAY_CASE,

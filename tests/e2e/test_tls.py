@@ -22,7 +22,6 @@ from kernel.router_process import RouterProcess
 from kernel.security import SECURITY_DIR, Credential, client_settings, read_credential
 from kernel.tls import ClientTls, alt_names, client_link, issue, new_ca
 from runtime.history import messages_digest
-from runtime.scenario import load_scenario
 from runtime.security import (
     DASHBOARD,
     INJECT,
@@ -33,6 +32,7 @@ from runtime.security import (
     pick_endpoint,
     prepare,
 )
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 from tests.e2e.test_routers import chain_two_routers, run_nodes_split, stop_all
 from tests.e2e.test_runs import WNCS, wncs_run

@@ -18,7 +18,7 @@ import pytest
 from bus_schemas import keys
 from runtime.direct import loop_model
 from runtime.history import connect, messages_digest
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 pytestmark = pytest.mark.slow

@@ -10,7 +10,7 @@ from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from core.record import summarize
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, load_yaml
 from tests.integration.test_column_mrac_bus import assert_traces_equal
 

@@ -13,7 +13,7 @@ from runtime.direct import simulate
 from runtime.executions import multi_loop_executions
 from runtime.history import load_record
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -12,7 +12,7 @@ from core.record import summarize
 from gateway.behaviour import NetworkBehaviour
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_column_mrac_bus import assert_traces_equal
 

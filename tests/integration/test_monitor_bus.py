@@ -10,8 +10,8 @@ import pytest
 
 from agents.monitor.behaviour import assessment_body
 from bus_schemas import MonitorAssessment, codec, keys
+from cli.main import main
 from core.time import to_ticks
-from runtime.cli import main
 from runtime.history import connect
 from runtime.launcher import launch
 from tests.conftest import SCENARIOS, write_variant

@@ -10,7 +10,7 @@ import json
 
 import pytest
 
-from runtime.cli import main as wncs
+from cli.main import main as wncs
 from tests.conftest import SCENARIOS
 
 pytestmark = pytest.mark.slow

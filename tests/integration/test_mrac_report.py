@@ -10,7 +10,7 @@ import struct
 
 import pytest
 
-from runtime.cli import main
+from cli.main import main
 from runtime.launcher import launch
 from tests.conftest import BENCHMARK, SCENARIOS, write_variant
 

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from runtime.cli import main
+from cli.main import main
 from runtime.launcher import launch
 from tests.conftest import BENCHMARK
 

@@ -12,8 +12,8 @@ from core.errors import ConfigError
 from kernel.bus import open_client
 from kernel.router_process import RouterProcess
 from kernel.security import Credential, client_settings
-from runtime.scenario import load_scenario
 from runtime.security import credentials_of, prepare
+from scenario import load_scenario
 from tests.conftest import BENCHMARK, wait_until
 
 RUN = "raudit"

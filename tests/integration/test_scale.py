@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from cli.main import main
 from core.record import summarize
-from runtime.cli import main
 from runtime.direct import simulate
 from runtime.history import load_record
 from runtime.launcher import launch
 from runtime.scale import scale_scenario, write_scale
-from runtime.scenario import GatewayNodeConfig, load_scenario
+from scenario import GatewayNodeConfig, load_scenario
 from tests.integration.test_engines_agree import _BUS_ONLY, _without_wall_clock
 
 

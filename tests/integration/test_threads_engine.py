@@ -24,7 +24,7 @@ from runtime.direct import simulate
 from runtime.historian import HistorianNode
 from runtime.history import connect, messages_digest
 from runtime.launcher import SWITCH_INTERVAL_S, launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK, SCENARIOS, launch_aside, write_variant
 
 

@@ -15,7 +15,7 @@ import wncs
 from gateway.carrier import PathCarrier
 from gateway.tsch.energy import RADIOS
 from runtime.launcher import launch
-from runtime.specs import carrier_spec
+from scenario.views import carrier_spec
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_engines_agree import _without_wall_clock
 

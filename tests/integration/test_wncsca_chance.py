@@ -10,8 +10,8 @@ from gateway.carrier import PathCarrier
 from runtime.analysis import analyze
 from runtime.direct import coordinator
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
-from runtime.specs import carrier_spec
+from scenario import load_scenario
+from scenario.views import carrier_spec
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_engines_agree import _without_wall_clock
 

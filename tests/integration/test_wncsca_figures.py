@@ -15,7 +15,7 @@ import pytest
 from agents.wncsca.paper import successive_approximation
 from core.record import loop_metrics
 from runtime.direct import loop_model, simulate
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 from tests.conftest import BENCHMARK, PAPER_OS_LEVEL, ROOT, SCENARIOS
 
 WNCS = SCENARIOS / "jcstr_wncs.yaml"

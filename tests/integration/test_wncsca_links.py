@@ -17,7 +17,7 @@ from core.record import summarize
 from core.time import to_ticks, to_units
 from runtime.direct import simulate
 from runtime.launcher import launch
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_column_mrac_bus import assert_traces_equal
 

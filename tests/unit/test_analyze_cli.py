@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from agents.wncsca.timeline import format_timeline
-from runtime.cli import main
+from cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 WNCS = ROOT / "scenarios" / "jcstr_wncs.yaml"  # the demo: a WSN and the coordination agent

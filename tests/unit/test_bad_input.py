@@ -10,9 +10,9 @@ import sqlite3
 import pytest
 
 from bus_schemas import codec
+from cli.main import main
 from core.errors import ProtocolError
 from core.rounds import RoundPlanner
-from runtime.cli import main
 from tests.conftest import SCENARIOS
 
 BENCH = SCENARIOS / "jcstr_benchmark.yaml"

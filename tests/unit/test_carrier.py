@@ -10,8 +10,8 @@ from core.record import summarize
 from core.time import to_ticks
 from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
-from runtime.specs import carrier_spec, path_hops
+from scenario import load_scenario
+from scenario.views import carrier_spec, path_hops
 from tests.conftest import BENCHMARK, SCENARIOS, write_variant
 
 WSN = SCENARIOS / "jcstr_wsn.yaml"

@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose
 from plants import registry
 from plants.cascade_ct import CHUNK, CascadeCT, CascadeCTParams, step_response
 from plants.integrate import integrator_of, rk4
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 PLANT = CascadeCT(CascadeCTParams())

@@ -16,7 +16,7 @@ from core.record import summarize
 from core.time import to_units
 from plants.cascade_ct import CascadeCTParams, sampled
 from runtime.direct import simulate
-from runtime.scenario import load_scenario, parse_scenario
+from scenario import load_scenario, parse_scenario
 from tests.conftest import SCENARIOS, load_yaml, write_variant
 
 ROUTINE = SCENARIOS / "cascade_routine.yaml"

@@ -19,9 +19,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from cli.main import EXAMPLES, build_parser, main
 from core.errors import ConfigError
-from runtime.cli import EXAMPLES, build_parser, main
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "scenarios"
@@ -195,7 +195,7 @@ def test_validate_runs_as_a_command(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: x\nnodes:\n  - [unclosed\n")
     done = subprocess.run(
-        [sys.executable, "-m", "runtime.cli", "validate", str(TANK), str(bad)],
+        [sys.executable, "-m", "cli", "validate", str(TANK), str(bad)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -295,8 +295,8 @@ def test_terminal_commands_start_zenoh_log_off(capsys, monkeypatch, tmp_path, co
     """The commands whose process talks on the bus with the terminal as stdout start zenoh's
     logging at "off" (kernel.bus.init_zenoh_log: RUST_LOG still wins) before anything else."""
     levels: list[str] = []
-    monkeypatch.setattr("runtime.cli.init_zenoh_log", levels.append)
-    monkeypatch.setattr("runtime.cli.signal.signal", lambda *args: None)
+    monkeypatch.setattr("cli.main.init_zenoh_log", levels.append)
+    monkeypatch.setattr("cli.bus.signal.signal", lambda *args: None)
     argv = {
         "run": ["run", str(TANK), "--out", str(tmp_path / "o"), "--set", "loops.level.tau_s=-1"],
         "inject": ["inject", str(tmp_path / "nothing"), "node_down", "node=r1"],
@@ -314,7 +314,7 @@ def test_zenoh_log_lines_stay_off_a_threads_run_unless_rust_log_asks(tmp_path):
 
     def run(out: str, **extra: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
-            [sys.executable, "-m", "runtime.cli", "run", str(TANK), "--out", str(tmp_path / out)]
+            [sys.executable, "-m", "cli", "run", str(TANK), "--out", str(tmp_path / out)]
             + ["--engine", "threads", *SHORT],
             capture_output=True,
             text=True,
@@ -341,7 +341,7 @@ def test_processes_engine_gives_every_node_the_overrides(tmp_path):
     for engine in ("processes", "direct"):
         out = tmp_path / engine
         done = subprocess.run(
-            [sys.executable, "-m", "runtime.cli", "run", str(TANK), "--out", str(out)]
+            [sys.executable, "-m", "cli", "run", str(TANK), "--out", str(out)]
             + ["--engine", engine, "--quiet", *overrides],
             capture_output=True,
             text=True,

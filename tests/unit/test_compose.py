@@ -8,9 +8,9 @@ import tomllib
 
 import yaml
 
-from runtime.cli import build_parser
+from cli.main import build_parser
 from runtime.nodes import check_node
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import ROOT
 
 

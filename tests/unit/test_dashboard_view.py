@@ -16,7 +16,7 @@ from dashboard.feed import Row
 from dashboard.view import RunView, decimate
 from runtime.artefacts import SCENARIO_FILE
 from runtime.inject import build_request
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 DEMO = SCENARIOS / "jcstr_wncs.yaml"

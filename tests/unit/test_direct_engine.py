@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 from core.record import summarize
 from core.time import to_ticks, to_units
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK, PAPER_OS_LEVEL, PAPER_OS_TEMPERATURE
 
 CASES = {"benchmark": {}, "tau_s 0.25, level delay 0.17": {"tau_s": 0.25, "tau_d": 0.17}}

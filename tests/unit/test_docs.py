@@ -28,12 +28,12 @@ import pytest
 from pydantic import BaseModel
 
 from bus_schemas import bodies
+from cli.main import build_parser
 from controllers.registry import LAWS
 from core.registry import Registry
 from gateway.delay_models import DELAY_MODELS
 from plants.registry import MODELS
-from runtime.cli import build_parser
-from runtime.scenario import NODE_KINDS, Scenario
+from scenario import NODE_KINDS, Scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"

@@ -11,8 +11,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from cli.main import main
 from core.time import TICKS_PER_UNIT
-from runtime.cli import main
 from runtime.launcher import launch
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from plants.jcstr import BENCHMARK_PARAMS, JCSTR
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 
 PLANT = JCSTR(BENCHMARK_PARAMS)

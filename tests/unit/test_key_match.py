@@ -9,7 +9,7 @@ import zenoh
 
 from bus_schemas import keys
 from runtime.direct import behaviour_of
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 EXTRA_PATTERNS = ["**", "*", "plant/**", "**/meas", "loop/*/u", "a/**/b", "ops/setpoint/*"]

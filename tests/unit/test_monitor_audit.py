@@ -16,7 +16,7 @@ from scipy.signal import lfilter  # noqa: TID253 - not a node: imports what it u
 from agents.monitor.audit import collect_loops, load_audit_config, rank, run_audit
 from agents.monitor.audit_report import TABLE_COLUMNS
 from agents.monitor.errors import DataError
-from runtime.cli import main
+from cli.main import main
 
 N = 751
 DELAY = 3

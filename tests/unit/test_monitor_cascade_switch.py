@@ -17,8 +17,8 @@ from agents.monitor.run_data import RunSeries, assess_series, feed_run_record
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from core.time import to_ticks
 from runtime.direct import simulate
-from runtime.scenario import Scenario, parse_scenario
-from runtime.specs import run_shape
+from scenario import Scenario, parse_scenario
+from scenario.views import run_shape
 from tests.conftest import SCENARIOS, load_yaml
 
 LOOP, WINDOW, START = "temperature", 2000, 100.0

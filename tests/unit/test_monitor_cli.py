@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.monitor.command import parse_delays
+from cli.main import main
 from controllers.cascade import EXAMPLE_SFB, SFBPI
 from plants.cascade_process import EXAMPLE_1, EXAMPLE_3, simulate
-from runtime.cli import main
+from runtime.assess import parse_delays
 
 HEADER = "time;SP;PV;OP;T2;T3"
 

@@ -16,8 +16,8 @@ from agents.monitor.run_data import RunSeries, assess_series
 from bus_schemas import MonitorAssessment, MonitorCandidate, MonitorHarris, codec, keys
 from bus_schemas.bodies import PlantState, Sample, Setpoint
 from core.errors import ConfigError, SchemaError
-from runtime.scenario import parse_scenario
-from runtime.specs import run_shape
+from scenario import parse_scenario
+from scenario.views import run_shape
 from tests.conftest import SCENARIOS, load_yaml
 
 CASCADE = SCENARIOS / "cascade_routine.yaml"

@@ -16,7 +16,7 @@ from agents.monitor.assess import assess, assess_csv, parse_time
 from agents.monitor.config import MonitorConfig, ScreeningConfig
 from agents.monitor.errors import DataError, QualityError
 from agents.monitor.screening import label_mask, runs, spike_scores
-from runtime.cli import main
+from cli.main import main
 
 PHI = 0.9
 DELAY = 3

@@ -21,7 +21,7 @@ from controllers.mrac_plots import figures, series
 from core.time import to_units
 from runtime.direct import simulate
 from runtime.executions import multi_loop_executions
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK, SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -29,7 +29,7 @@ from plants.column_plant import ColumnPlant
 from plants.perturbed_reduced import PerturbedReduced, PerturbedReducedParams
 from runtime.direct import simulate
 from runtime.executions import multi_loop_executions
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import ROOT, SCENARIOS, write_variant
 
 THESIS = SCENARIOS / "column_mrac.yaml"

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import wncs
+from cli.main import main
 from controllers.pi import PI, PIConfig
 from controllers.pi_linear import pi_state_space
 from plants.sampled import sampled_with_delay, zoh_with_delay
-from runtime.cli import main
 from runtime.report import write_plots
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ from core.time import to_ticks
 from runtime.direct import behaviour_of
 from runtime.engine import DirectEngine, Message
 from runtime.ownership import CLOCK, owners_of, publishers, readers
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
 

@@ -13,7 +13,7 @@ import pytest
 
 from bus_schemas import Move, keys
 from runtime.direct import behaviour_of
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 
 KEY = keys.actuator("reactor", "F_out")

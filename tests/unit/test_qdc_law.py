@@ -24,8 +24,8 @@ from core.errors import ConfigError
 from core.record import summarize
 from core.time import to_ticks
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
-from runtime.specs import controller_spec
+from scenario import load_scenario
+from scenario.views import controller_spec
 from tests.conftest import SCENARIOS, write_variant
 
 QDC = SCENARIOS / "cstr_recycle_qdc.yaml"

@@ -99,7 +99,7 @@ RUN = """
 import json, sys
 sys.path.insert(0, sys.argv[1])
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 rec = simulate(load_scenario(sys.argv[2]))
 loop = rec.loops["level"]
 print(json.dumps({"y": loop.y, "u": loop.u, "t": loop.t, "sp": loop.setpoints}))
@@ -174,3 +174,103 @@ def test_a_new_law_is_a_module_and_a_registry_entry(tmp_path):
     # the same scenario is refused by the project as it is: no such law
     refused = _run(ROOT, scenario)
     assert refused.returncode != 0 and "'prop'" in refused.stderr
+
+
+# -- a node kind -----------------------------------------------------------------------------
+KIND_MODULE = '''
+"""A trivial node kind for the registry test: a beacon that publishes its count every period."""
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from bus_schemas import Setpoint
+from core.behaviour import Behaviour
+from core.time import to_ticks
+
+
+class BeaconConfig(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    kind: Literal["beacon"]
+    period: float = Field(gt=0)
+
+
+class BeaconBehaviour(Behaviour):
+    def __init__(self, name, config):
+        super().__init__(name)
+        self.count = 0
+        self.every(to_ticks(config.period), self._beat)
+
+    def _beat(self):
+        self.publish("events/beacon", Setpoint(value=float(self.count)))
+        self.count += 1
+'''
+
+KIND_IMPORT = "from agents.beacon import BeaconBehaviour, BeaconConfig\n"
+KIND_ENTRY = (
+    '        Kind("beacon", BeaconConfig, BehaviourBuild(BeaconBehaviour, '
+    "lambda scenario, name: scenario.node(name, BeaconConfig))),\n"
+)
+UNION_MEMBER = "    | BeaconConfig\n"
+
+RUN_KIND = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from core.time import to_ticks
+from runtime.direct import behaviour_of
+from runtime.engine import DirectEngine
+from scenario import load_scenario
+sc = load_scenario(sys.argv[2])
+seen = []
+DirectEngine(
+    {n: behaviour_of(sc, n) for n in sorted(sc.nodes)},
+    end=to_ticks(sc.end_time),
+    max_microsteps=sc.clock.max_microsteps,
+    on_round=lambda ms: seen.extend((m.t, m.body.value) for m in ms if m.key == "events/beacon"),
+).run()
+print(json.dumps(seen))
+"""
+
+
+def _copy_with_kind(tree: Path) -> None:
+    for pkg in PACKAGES:
+        shutil.copytree(ROOT / pkg, tree / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    (tree / "agents" / "beacon.py").write_text(KIND_MODULE)
+    kinds = tree / "scenario" / "kinds.py"
+    text = kinds.read_text()
+    anchor, entries = "from core.behaviour import Behaviour\n", '    tag="kind",\n    kinds=[\n'
+    assert anchor in text and entries in text
+    kinds.write_text(
+        text.replace(anchor, KIND_IMPORT + anchor, 1).replace(entries, entries + KIND_ENTRY, 1)
+    )
+    schema = tree / "scenario" / "schema.py"
+    text = schema.read_text()
+    anchor, last = "from bus_schemas import Setpoint, keys\n", "    | MonitorNodeConfig,\n"
+    assert anchor in text and last in text
+    text = text.replace(anchor, KIND_IMPORT + anchor, 1)
+    schema.write_text(text.replace(last, UNION_MEMBER + last, 1))
+
+
+@pytest.mark.slow
+def test_a_new_node_kind_is_a_module_a_registry_entry_and_its_union_member(tmp_path):
+    tree = tmp_path / "tree"
+    _copy_with_kind(tree)
+    changed = [f"{pkg}/{d}" for pkg in PACKAGES for d in _differences(ROOT / pkg, tree / pkg)]
+    assert sorted(changed) == ["agents/beacon.py", "scenario/kinds.py", "scenario/schema.py"]
+    data = yaml.safe_load((ROOT / "scenarios" / "jcstr_benchmark.yaml").read_text())
+    data["nodes"]["beacon"] = {"kind": "beacon", "period": 0.5}
+    scenario = tmp_path / "beacon.yaml"
+    scenario.write_text(yaml.safe_dump(data))
+    done = subprocess.run(
+        [sys.executable, "-c", RUN_KIND, str(tree), str(scenario)],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=scenario.parent,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    n = int(data["end_time"] / 0.5) + 1  # at 0, 0.5, ..., end_time: the timers due up to the end
+    assert seen == [[k * 500_000, float(k)] for k in range(n)]
+    refused = _run(ROOT, scenario)  # the project as it is has no such kind
+    assert refused.returncode != 0 and "beacon" in refused.stderr

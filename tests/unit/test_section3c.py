@@ -11,7 +11,7 @@ import pytest
 
 from core.record import loop_metrics
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 
 BASE = load_scenario(BENCHMARK)

@@ -21,7 +21,6 @@ from kernel.security import (
     read_credential,
     router_settings,
 )
-from runtime.scenario import RESERVED_NODES, load_scenario
 from runtime.security import (
     DASHBOARD,
     INJECT,
@@ -32,6 +31,7 @@ from runtime.security import (
     prepare,
     warn_insecure,
 )
+from scenario import RESERVED_NODES, load_scenario
 from tests.conftest import BENCHMARK
 
 RUN = "rtest"

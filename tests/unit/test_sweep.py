@@ -11,8 +11,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from cli.main import main
 from core.errors import ConfigError
-from runtime.cli import main
 from runtime.launcher import launch
 from runtime.sweep import parse_axis, parse_range
 

@@ -10,11 +10,11 @@ import math
 import numpy as np
 import pytest
 
+from cli.main import main
 from core.record import summarize
-from runtime.cli import main
 from runtime.direct import simulate
 from runtime.scale import scale_scenario
-from runtime.scenario import GatewayNodeConfig, load_scenario, parse_scenario
+from scenario import GatewayNodeConfig, load_scenario, parse_scenario
 from tests.conftest import SCENARIOS
 
 SHIPPED = SCENARIOS / "tank_train_20.yaml"

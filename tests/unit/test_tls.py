@@ -45,8 +45,8 @@ from kernel.tls import (
     write_tls,
 )
 from runtime.router import router_at
-from runtime.scenario import load_scenario
 from runtime.security import check_tls, listen_names, pick_endpoint, prepare
+from scenario import load_scenario
 from tests.conftest import BENCHMARK
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
+from cli.main import main
 from core.errors import ConfigError
-from runtime.cli import main
 from runtime.inject import build_request
 from tests.conftest import SCENARIOS, write_variant
 

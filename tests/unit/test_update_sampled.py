@@ -18,7 +18,7 @@ from agents.update_period.delay import DelayedUpdates
 from agents.update_period.sampled import SampledQDC, find_h_max_sampled, h_max_vs_tau_s
 from controllers.qdc import QDCNetwork, closed_loop_matrices
 from runtime.direct import simulate
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 
 QDC = SCENARIOS / "cstr_recycle_qdc.yaml"

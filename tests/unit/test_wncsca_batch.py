@@ -18,7 +18,7 @@ from agents.wncsca.fast import fast_periods
 from agents.wncsca.paper import successive_approximation
 from runtime.agent_problems import jcstr_loops
 from runtime.direct import loop_model
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 ROWS = {  # columns: level0, tank1, temperature0 (the model's loop order)

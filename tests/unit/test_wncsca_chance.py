@@ -26,7 +26,7 @@ from gateway import distribution
 from gateway.delay_models import ConstantDelay, ExponentialDelay
 from gateway.paths import Hop, Route
 from runtime.direct import loop_model
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 

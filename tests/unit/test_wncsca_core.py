@@ -18,7 +18,7 @@ from agents.wncsca.decision import ProposalError, control_path_delays, decide
 from agents.wncsca.paper import successive_approximation
 from core.time import to_ticks
 from runtime.direct import coordinator, loop_model
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
 WNCS = SCENARIOS / "jcstr_wncs.yaml"

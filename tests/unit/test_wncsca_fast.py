@@ -25,7 +25,7 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from plants.linearization import jacobians
 from runtime.direct import loop_model
-from runtime.scenario import Scenario, load_scenario
+from scenario import Scenario, load_scenario
 from tests.conftest import SCENARIOS
 
 WORKED = {"level": 0.17, "temperature": 0.10}

@@ -16,7 +16,7 @@ from agents.wncsca.config import LinksConfig, WncscaConfig
 from agents.wncsca.links import judge_links, link_groups
 from controllers.qdc import QDCNetwork, closed_loop_matrices
 from runtime.direct import coordinator as build_coordinator
-from runtime.scenario import load_scenario
+from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant
 
 CASE = CSTRRecycleCase()

@@ -1,17 +1,19 @@
-"""Each node's typed spec, computed once from its scenario (the scenario layer, DESIGN section 2).
+"""Each node's typed spec, computed once from its scenario (the scenario layer, DESIGN section 2),
+and the views of a scenario the application reads.
 
 A behaviour takes what it needs as a frozen spec (:class:`~plants.behaviour.PlantSpec`,
 :class:`~controllers.behaviour.ControllerSpec`, :class:`~gateway.behaviour.NetworkSpec`,
 :class:`~agents.operator.behaviour.OperatorSpec`, :class:`~agents.monitor.behaviour.MonitorSpec`)
-instead of the whole :class:`~runtime.scenario.Scenario`, so it neither re-derives the scenario's
-view nor depends on its shape. The node kinds' builds (:data:`runtime.scenario.NODE_KINDS`) pass
+instead of the whole :class:`~scenario.model.Scenario`, so it neither re-derives the scenario's
+view nor depends on its shape. The node kinds' builds (:data:`scenario.kinds.NODE_KINDS`) pass
 a node's spec to its behaviour. A network's paths take a :class:`~gateway.carrier.CarrierSpec`.
 
 The coordination agent takes an :class:`~agents.wncsca.spec.AgentSpec` (:func:`agent_spec`):
 its judged loops as a :class:`~agents.wncsca.spec.ClosedLoopSpec`, the networks and links it
 governs; its trials run through a :class:`ScenarioSimulator`, which writes each trial as a
-scenario (:meth:`runtime.scenario.Scenario.agent_model`, :meth:`~runtime.scenario.Scenario.trial`)
-and runs it on the engine it is handed (the direct engine's ``simulate``).
+scenario (:meth:`~scenario.schema.ScenarioSchema.agent_model`,
+:meth:`~scenario.schema.ScenarioSchema.trial`) and runs it on the engine it is handed (the
+direct engine's ``simulate``).
 """
 
 from __future__ import annotations
@@ -20,16 +22,17 @@ import dataclasses
 import hashlib
 import json
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from agents.monitor.behaviour import MonitorSpec
 from agents.monitor.columns import RunLoop, RunShape
+from agents.monitor.config import MonitorNodeConfig
 from agents.monitor.run_data import RunSeries
 from agents.operator.behaviour import DisturbanceAt, ModeAt, OperatorSpec, SetpointAt
 from agents.wncsca.behaviour import WncscaBehaviour
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
-from agents.wncsca.links import link_groups
+from agents.wncsca.links import LinkGroup, link_groups
 from agents.wncsca.model import LoopModel
 from agents.wncsca.spec import (
     AgentSpec,
@@ -49,9 +52,7 @@ from core.time import to_ticks
 from gateway.behaviour import NetworkSpec
 from gateway.carrier import CarrierSpec, PathCarrier
 from plants.behaviour import PlantSpec
-
-if TYPE_CHECKING:
-    from runtime.scenario import Scenario
+from scenario.schema import GatewayNodeConfig, NetworkNodeConfig, ScenarioSchema
 
 __all__ = [
     "agent_config",
@@ -72,14 +73,14 @@ __all__ = [
 ]
 
 
-def plant_spec(scenario: Scenario, name: str) -> PlantSpec:
+def plant_spec(scenario: ScenarioSchema, name: str) -> PlantSpec:
     """Plant node ``name``: its model, initial state and inputs, sensors and their generators."""
-    cfg = scenario.nodes[name]
+    cfg = scenario.plant(name)
     model = cfg.build()
     sensors = {
         lp.sensor: to_ticks(lp.tau_s)
         for lp in scenario.loops_of_plant(name).values()
-        if lp.sensor is not None  # an actuator-only loop: nothing to sample
+        if lp.sensor is not None and lp.tau_s is not None  # actuator-only: nothing to sample
     }
     return PlantSpec(
         model=model,
@@ -95,9 +96,9 @@ def plant_spec(scenario: Scenario, name: str) -> PlantSpec:
     )
 
 
-def controller_spec(scenario: Scenario, name: str) -> ControllerSpec:
+def controller_spec(scenario: ScenarioSchema, name: str) -> ControllerSpec:
     """Controller node ``name``: its loops, law, plant model, set points and links."""
-    cfg = scenario.nodes[name]
+    cfg = scenario.controller(name)
     loops = cfg.loop_names
     first = scenario.loops[loops[0]]
     plants = sorted({scenario.loops[n].plant for n in loops})
@@ -106,13 +107,15 @@ def controller_spec(scenario: Scenario, name: str) -> ControllerSpec:
         "loops": loops,
         "multi": cfg.loops is not None,
         "law": cfg.law,
-        "plant": scenario.nodes[first.plant].build(),
+        "plant": scenario.plant(first.plant).build(),
         "setpoints": setpoints,
         "setpoint_keys": {n: scenario.setpoint_key(n) for n in setpoints},
         "governed": scenario.agent_node() is not None,
         "end": to_ticks(scenario.end_time),
     }
     if cfg.loops is None:
+        if first.tau_s is None:
+            raise ValueError(f"loops.{loops[0]}: a single-loop controller's loop samples")
         feedforward = scenario.feedforward(loops[0]) if uses_feedforward(cfg.law) else None
         return ControllerSpec(tau_s=first.tau_s, feedforward=feedforward, **common)
     links = sorted(scenario.links.items())
@@ -127,19 +130,21 @@ def controller_spec(scenario: Scenario, name: str) -> ControllerSpec:
     )
 
 
-def carrier_spec(scenario: Scenario, name: str) -> CarrierSpec:
+def carrier_spec(scenario: ScenarioSchema, name: str) -> CarrierSpec:
     """What network node ``name``'s paths are made of: the loops and links it carries."""
     return CarrierSpec(
         node=name,
         seed=scenario.seed,
         loops={n: lp for n, lp in sorted(scenario.loops.items()) if lp.network == name},
         links={n: lk for n, lk in sorted(scenario.links.items()) if lk.network == name},
-        gateway=scenario.nodes[name] if scenario.is_wireless(name) else None,
-        traces={} if scenario.is_wireless(name) else dict(scenario.nodes[name].traces),
+        gateway=scenario.node(name, GatewayNodeConfig) if scenario.is_wireless(name) else None,
+        traces={}
+        if scenario.is_wireless(name)
+        else dict(scenario.node(name, NetworkNodeConfig).traces),
     )
 
 
-def path_hops(scenario: Scenario) -> dict[str, int]:
+def path_hops(scenario: ScenarioSchema) -> dict[str, int]:
     """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario."""
     out: dict[str, int] = {}
     for name in scenario.carriers():
@@ -148,9 +153,10 @@ def path_hops(scenario: Scenario) -> dict[str, int]:
     return out
 
 
-def network_spec(scenario: Scenario, name: str) -> NetworkSpec:
+def network_spec(scenario: ScenarioSchema, name: str) -> NetworkSpec:
     """Network or gateway node ``name``: the paths it carries, and its timing."""
-    stats_period = getattr(scenario.nodes[name], "stats_period", None)  # a gateway's
+    gateway = scenario.nodes_of(GatewayNodeConfig).get(name)
+    stats_period = gateway.stats_period if gateway is not None else None
     return NetworkSpec(
         carrier=PathCarrier(carrier_spec(scenario, name)),
         governed=scenario.agent_node() is not None,
@@ -159,7 +165,7 @@ def network_spec(scenario: Scenario, name: str) -> NetworkSpec:
     )
 
 
-def run_shape(scenario: Scenario) -> RunShape:
+def run_shape(scenario: ScenarioSchema) -> RunShape:
     """What the monitor reads of a run of ``scenario``: its loops (sampling period, set point
     and where the controller reads it), its plants' states and its end."""
     return RunShape(
@@ -174,9 +180,9 @@ def run_shape(scenario: Scenario) -> RunShape:
     )
 
 
-def monitor_spec(scenario: Scenario, name: str) -> MonitorSpec:
+def monitor_spec(scenario: ScenarioSchema, name: str) -> MonitorSpec:
     """Monitor node ``name``: its configuration and the window of the columns it assesses."""
-    cfg = scenario.nodes[name]
+    cfg = scenario.node(name, MonitorNodeConfig)
     run = run_shape(scenario)
     try:
         cfg.check(run, name)
@@ -186,7 +192,7 @@ def monitor_spec(scenario: Scenario, name: str) -> MonitorSpec:
     return MonitorSpec(cfg, series, end=to_ticks(scenario.end_time), time_unit=scenario.time_unit)
 
 
-def operator_spec(scenario: Scenario, name: str) -> OperatorSpec:
+def operator_spec(scenario: ScenarioSchema, name: str) -> OperatorSpec:
     """The operator: the scenario's set-point, mode and disturbance schedules, in ticks."""
     return OperatorSpec(
         setpoints=tuple(
@@ -200,25 +206,18 @@ def operator_spec(scenario: Scenario, name: str) -> OperatorSpec:
     )
 
 
-def agent_config(scenario: Scenario) -> WncscaConfig:
+def agent_config(scenario: ScenarioSchema) -> WncscaConfig:
     """The configuration of the scenario's agent node, or the defaults if it has none (what
     ``wncs analyze`` judges a scenario without an agent with)."""
     name = scenario.agent_node()
     return scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
 
 
-def closed_loop_spec(scenario: Scenario, config: WncscaConfig) -> ClosedLoopSpec:
-    """The agent's closed-loop model of ``scenario`` under ``config``'s test (default: the
-    scenario's set-point schedule and end): its judged loops
-    (:meth:`~runtime.scenario.Scenario.simulated_loops`), their plants and laws.
-
-    Raises
-    ------
-    ValueError
-        A test step names an unknown loop or falls after the test's end, or a judged loop has
-        no step (the agent judges a loop by the overshoot of its step).
-    """
-    names = scenario.simulated_loops()
+def _test(
+    scenario: ScenarioSchema, config: WncscaConfig, names: tuple[str, ...]
+) -> tuple[tuple[Step, ...], float]:
+    """The steps and the end of the agent's set-point test of its judged loops ``names``
+    (``ValueError`` for a step of an unknown loop or after the end, or a loop without one)."""
     if config.test is not None:
         steps = tuple(Step(s.t, s.loop, s.value) for s in config.test.setpoints)
         end_time = config.test.end_time
@@ -238,6 +237,22 @@ def closed_loop_spec(scenario: Scenario, config: WncscaConfig) -> ClosedLoopSpec
             f"test.setpoints: no set-point step for loop(s) {missing}; the agent judges a "
             "loop by the overshoot of its step"
         )
+    return steps, end_time
+
+
+def closed_loop_spec(scenario: ScenarioSchema, config: WncscaConfig) -> ClosedLoopSpec:
+    """The agent's closed-loop model of ``scenario`` under ``config``'s test (default: the
+    scenario's set-point schedule and end): its judged loops
+    (:meth:`~scenario.schema.ScenarioSchema.simulated_loops`), their plants and laws.
+
+    Raises
+    ------
+    ValueError
+        A test step names an unknown loop or falls after the test's end, or a judged loop has
+        no step (the agent judges a loop by the overshoot of its step).
+    """
+    names = scenario.simulated_loops()
+    steps, end_time = _test(scenario, config, names)
     loops: dict[str, JudgedLoop] = {}
     for n in names:
         lp = scenario.loops[n]
@@ -269,8 +284,8 @@ def closed_loop_spec(scenario: Scenario, config: WncscaConfig) -> ClosedLoopSpec
             noise=dict(cfg.noise),
         )
     what = {  # everything a trial's outcome depends on but its periods and delays
-        "plants": {p: scenario.nodes[p].model_dump() for p in plants},
-        "controllers": {c: scenario.nodes[c].model_dump() for c in sorted(controllers)},
+        "plants": {p: scenario.plant(p).model_dump() for p in plants},
+        "controllers": {c: scenario.controller(c).model_dump() for c in sorted(controllers)},
         "loops": {n: scenario.loops[n].model_dump() for n in names},
         "steps": [dataclasses.asdict(s) for s in steps],
         "end_time": end_time,
@@ -291,14 +306,14 @@ def closed_loop_spec(scenario: Scenario, config: WncscaConfig) -> ClosedLoopSpec
 
 
 def agent_spec(
-    scenario: Scenario, name: str | None = None, config: WncscaConfig | None = None
+    scenario: ScenarioSchema, name: str | None = None, config: WncscaConfig | None = None
 ) -> AgentSpec:
     """What agent node ``name`` of ``scenario`` knows of its run (``name`` ``None``: the
     scenario's agent, or one with the default configuration; ``config`` replaces the node's)."""
     name = name or scenario.agent_node()
     if config is None:
         config = scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
-    groups = ()
+    groups: tuple[LinkGroup, ...] = ()
     if config.links:
         groups = tuple(
             link_groups(
@@ -330,9 +345,9 @@ def agent_spec(
 class ScenarioSimulator:
     """The agent's :class:`~agents.wncsca.spec.Simulator` for a scenario: each trial of the
     closed-loop spec written as a scenario (validated once, then only the trial's fields
-    replaced: :meth:`~runtime.scenario.Scenario.trial`) and run by ``simulate``."""
+    replaced: :meth:`~scenario.schema.ScenarioSchema.trial`) and run by ``simulate``."""
 
-    def __init__(self, scenario: Scenario, spec: ClosedLoopSpec, simulate: Simulate) -> None:
+    def __init__(self, scenario: ScenarioSchema, spec: ClosedLoopSpec, simulate: Simulate) -> None:
         self.model = scenario.agent_model(spec)
         self._simulate = simulate
 
@@ -341,7 +356,7 @@ class ScenarioSimulator:
 
 
 def loop_model(
-    scenario: Scenario, config: WncscaConfig | None = None, *, simulate: Simulate
+    scenario: ScenarioSchema, config: WncscaConfig | None = None, *, simulate: Simulate
 ) -> LoopModel:
     """The agent's model of ``scenario`` (``config`` defaults to its agent's), its trials run
     by ``simulate``."""
@@ -351,7 +366,7 @@ def loop_model(
 
 
 def coordinator(
-    scenario: Scenario,
+    scenario: ScenarioSchema,
     config: WncscaConfig | None = None,
     *,
     simulate: Simulate,
@@ -364,7 +379,7 @@ def coordinator(
     return Coordinator(spec, LoopModel(Trials(spec.closed_loop, simulator), spec.config))
 
 
-def agent_behaviour(name: str, scenario: Scenario, simulate: Simulate) -> WncscaBehaviour:
-    """The agent kind's build (:data:`runtime.scenario.NODE_KINDS`): agent node ``name`` of
+def agent_behaviour(name: str, scenario: ScenarioSchema, simulate: Simulate) -> WncscaBehaviour:
+    """The agent kind's build (:data:`scenario.kinds.NODE_KINDS`): agent node ``name`` of
     ``scenario``, its model's trials run by ``simulate``."""
     return WncscaBehaviour(name, coordinator(scenario, simulate=simulate, name=name))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from core.errors import ConfigError
-from runtime.yaml_positions import read_yaml
+from scenario.yaml_positions import read_yaml
 
 __all__ = ["Override", "parse_override", "apply_overrides"]
 

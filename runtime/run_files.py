@@ -4,7 +4,7 @@ run's ``record.json``.
 
 The application layer (it reads run files through :mod:`runtime.history` and
 :mod:`runtime.report`, which know the scenario); ``wncs assess RUN_DIR``
-(:mod:`agents.monitor.command`) reads runs with it. The monitor's core
+(:mod:`runtime.assess`) reads runs with it. The monitor's core
 (:mod:`agents.monitor.run_data`) is bus-free and file-free and does not import it.
 """
 

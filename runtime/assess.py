@@ -55,12 +55,12 @@ from agents.monitor.config import MonitorConfig, ScreeningConfig, SecondarySpec
 from agents.monitor.errors import DataError
 from agents.monitor.report import format_report
 from agents.monitor.run_data import RunSeries, assess_series
-from agents.monitor.run_files import feed_history, feed_record
 from core.errors import ConfigError
 from core.time import to_ticks
 from runtime.history import read_meta
-from runtime.scenario import load_scenario
-from runtime.specs import run_shape
+from runtime.run_files import feed_history, feed_record
+from scenario import load_scenario
+from scenario.views import run_shape
 
 __all__ = [
     "add_assess_arguments",

@@ -1,0 +1,1 @@
+"""The ``wncs`` command line (:mod:`cli.main`): the top layer, above the application."""
