@@ -31,7 +31,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from core.time import to_ticks
+from core.time import to_ticks, to_units
 from gateway import distribution
 from gateway.energy import EnergyMeter, projected_lifetime
 from gateway.estimates import TimestampEstimator, hops_estimate, ping_estimate
@@ -323,7 +323,7 @@ class PathCarrier:
         out = {}
         for (loop, direction), route in sorted(self.routes.items()):
             done = [(r, d) for r, d in self.carried[loop, direction] if d is None or d <= t]
-            delays = np.array([(d - r) / 1e6 for r, d in done if d is not None])
+            delays = np.array([to_units(d - r) for r, d in done if d is not None])
             out[f"{loop}.{direction}"] = {
                 "hops": -1 if route is None else route.n_hops,
                 "delay_mean": float(delays.mean()) if len(delays) else None,

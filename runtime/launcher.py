@@ -1,5 +1,12 @@
 """The launcher: runs a scenario by one of three engines and leaves the run's artefacts in DIR.
 
+:func:`launch` is load, pick, run, summarize: the scenario is loaded and the run prepared
+(:func:`_prepare`: its directory, id and ``run.json``), the engine of ``--engine`` picked from
+:data:`ENGINES_BY_NAME` (each an :class:`Engine`: :class:`ProcessesEngine`,
+:class:`ThreadsEngine`, :class:`DirectRun`) runs it to an :class:`Outcome`, and the outcome's
+record is summarized (``summary.json``, the plots). The options travel as one frozen
+:class:`LaunchOptions`.
+
 ``processes`` (default) starts one OS process per node with exactly the command
 ``wncs node SCENARIO NAME --connect ENDPOINT --run-id ID`` around the run's zenoh router, a
 process of its own that counts what it refuses (:mod:`kernel.router_process`); ``threads``
@@ -12,6 +19,7 @@ one PNG per loop, and ``logs/`` with each process's log.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gc
 import logging
 import os
@@ -25,12 +33,13 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Protocol, TextIO
 
 import yaml
 
 from bus_schemas import Stop, TickLog, codec, keys
 from core.errors import ConfigError, NodeFault, SchemaError
+from core.record import RunRecord
 from core.time import to_units
 from kernel.bus import DEFAULT_LISTEN, Session, is_put, open_client
 from kernel.clock import ClockRunner
@@ -67,7 +76,20 @@ from runtime.security import (
 from runtime.security import prepare as prepare_security
 from scenario import Scenario, load_scenario
 
-__all__ = ["ENGINES", "RunResult", "launch", "node_command", "RUN_FILE", "SCENARIO_FILE"]
+__all__ = [
+    "ENGINES",
+    "ENGINES_BY_NAME",
+    "Engine",
+    "LaunchOptions",
+    "Run",
+    "Outcome",
+    "RunResult",
+    "launch",
+    "launch_with",
+    "node_command",
+    "RUN_FILE",
+    "SCENARIO_FILE",
+]
 
 log = logging.getLogger(__name__)
 
@@ -176,6 +198,76 @@ class _Progress:
         self.stream.flush()
 
 
+@dataclass(frozen=True)
+class LaunchOptions:
+    """How to run a scenario: ``wncs run``'s options (:func:`launch` documents each)."""
+
+    engine: str = "processes"
+    seed: int | None = None
+    listen: str | None = None
+    realtime: float | None = None
+    progress: TextIO | None = None
+    overrides: tuple[str, ...] = ()
+    force: bool = False
+    on_start: Callable[[Path], None] | None = None
+    insecure: bool = False
+    zenoh_config: str | None = None
+    tls: bool = False
+    affinity: Mapping[str, frozenset[int]] = field(default_factory=dict)
+
+    def checked(self) -> LaunchOptions:
+        """These options, refused where they contradict each other (``ValueError`` for an
+        unknown engine, ``ConfigError`` for TLS without a bus or without security), with TLS's
+        default endpoint."""
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}, got {self.engine!r}")
+        if not self.tls:
+            return self
+        if self.engine == "direct":
+            raise ConfigError("--tls: the direct engine has no bus; use threads or processes")
+        listen = self.listen or TLS_LISTEN
+        check_tls(listen, tls=self.tls, insecure=self.insecure)
+        return dataclasses.replace(self, listen=listen)
+
+
+@dataclass
+class Run:
+    """A run being launched: its scenario, directory, ``run.json`` and options."""
+
+    scenario: Scenario
+    scenario_path: Path
+    out: Path
+    info: dict[str, Any]
+    options: LaunchOptions
+    wall0: float
+    """``perf_counter`` at the launch's start."""
+
+    @property
+    def run_id(self) -> str:
+        return str(self.info["run_id"])
+
+
+@dataclass
+class Outcome:
+    """What an engine's run left: its exit code and error, and the record to summarize (none
+    when it failed before any round was recorded)."""
+
+    code: int
+    error: str | None = None
+    record: RunRecord | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+    """What ``summary.json`` says besides the record (``complete``, ``interrupted_at``, what
+    the router refused: ``router``)."""
+
+
+class Engine(Protocol):
+    """Runs a prepared :class:`Run` to its :class:`Outcome` (:data:`ENGINES_BY_NAME`)."""
+
+    def run(self, run: Run) -> Outcome:
+        """Run ``run`` (its ``run.json`` is written by then, its artefacts after)."""
+        ...
+
+
 def launch(
     scenario_path: str | Path,
     out: str | Path,
@@ -211,61 +303,79 @@ def launch(
     its router run on one CPU unless ``affinity`` gives ``*`` (:func:`~runtime.affinity.
     with_default`).
     """
-    if engine not in ENGINES:
-        raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
-    if tls:
-        if engine == "direct":
-            raise ConfigError("--tls: the direct engine has no bus; use threads or processes")
-        listen = listen or TLS_LISTEN
-        check_tls(listen, tls=tls, insecure=insecure)
-    scenario_path = Path(scenario_path)
-    scenario = load_scenario(scenario_path, overrides=overrides)
-    if seed is not None:
-        scenario = scenario.model_copy(update={"seed": seed})
-    check_affinity(affinity or {}, ["clock", *scenario.participants()], engine)
-    affinity = with_default(affinity or {}, engine)
-    out = _prepare_out(Path(out), force)
-    (out / SCENARIO_FILE).write_text(
-        yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
-    )
-    run_id = "r" + secrets.token_hex(5)
-    run_info: dict[str, Any] = {
-        "run_id": run_id,
-        "engine": engine,
-        "scenario": str(scenario_path.resolve()),
-        "seed": scenario.seed,
-        "overrides": list(overrides),
-        "endpoint": None,
-        "nodes": {},
-    }
-    if affinity:
-        run_info["affinity"] = {name: sorted(cpus) for name, cpus in affinity.items()}
-    wall0 = time.perf_counter()
-    if engine == "direct":
-        write_json(out / RUN_FILE, run_info)
-        rec = simulate(scenario)
-        rec.wall_s = time.perf_counter() - wall0
-        save_record(rec, out)
-        summary = write_summary(rec, out)
-        write_plots(rec, out, scenario=scenario)
-        return RunResult(0, None, summary, out)
-    return _launch_bus(
-        scenario,
-        scenario_path,
-        out,
-        run_info,
-        overrides=overrides,
+    options = LaunchOptions(
         engine=engine,
+        seed=seed,
         listen=listen,
         realtime=realtime,
         progress=progress,
-        wall0=wall0,
+        overrides=tuple(overrides),
+        force=force,
         on_start=on_start,
         insecure=insecure,
         zenoh_config=zenoh_config,
         tls=tls,
-        affinity=affinity,
+        affinity=dict(affinity or {}),
     )
+    return launch_with(scenario_path, out, options)
+
+
+def launch_with(scenario_path: str | Path, out: str | Path, options: LaunchOptions) -> RunResult:
+    """:func:`launch` with its options in one :class:`LaunchOptions`: load the scenario and
+    prepare the run, pick the engine, run it, summarize what it left."""
+    options = options.checked()
+    run = _prepare(Path(scenario_path), Path(out), options)
+    outcome = ENGINES_BY_NAME[options.engine]().run(run)
+    return _summarize(run, outcome)
+
+
+def _prepare(scenario_path: Path, out: Path, options: LaunchOptions) -> Run:
+    """The run of ``scenario_path`` into ``out``: its scenario loaded (with the options' seed),
+    its placement checked, ``out`` prepared with the scenario file in it, its id and ``run.json``
+    contents (written by the engine)."""
+    wall0 = time.perf_counter()
+    scenario = load_scenario(scenario_path, overrides=options.overrides)
+    if options.seed is not None:
+        scenario = scenario.model_copy(update={"seed": options.seed})
+    check_affinity(options.affinity, ["clock", *scenario.participants()], options.engine)
+    options = dataclasses.replace(options, affinity=with_default(options.affinity, options.engine))
+    out = _prepare_out(out, options.force)
+    (out / SCENARIO_FILE).write_text(
+        yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
+    )
+    info: dict[str, Any] = {
+        "run_id": "r" + secrets.token_hex(5),
+        "engine": options.engine,
+        "scenario": str(scenario_path.resolve()),
+        "seed": scenario.seed,
+        "overrides": list(options.overrides),
+        "endpoint": None,
+        "nodes": {},
+    }
+    if options.affinity:
+        info["affinity"] = {name: sorted(cpus) for name, cpus in options.affinity.items()}
+    return Run(scenario, scenario_path, out, info, options, wall0)
+
+
+def _summarize(run: Run, outcome: Outcome) -> RunResult:
+    """The artefacts of what the engine left: ``summary.json`` and the plots (a partial summary,
+    said so, for a run interrupted after its history began)."""
+    if outcome.record is None:
+        return RunResult(outcome.code, outcome.error or "run failed", {}, run.out)
+    summary = write_summary(outcome.record, run.out, **outcome.extra)
+    write_plots(outcome.record, run.out, scenario=run.scenario)
+    return RunResult(outcome.code, outcome.error, summary, run.out)
+
+
+class DirectRun:
+    """The direct engine (:mod:`runtime.direct`): no bus; the record is kept as ``record.json``."""
+
+    def run(self, run: Run) -> Outcome:
+        write_json(run.out / RUN_FILE, run.info)
+        rec = simulate(run.scenario)
+        rec.wall_s = time.perf_counter() - run.wall0
+        save_record(rec, run.out)
+        return Outcome(0, None, rec)
 
 
 def _prepare_out(out: Path, force: bool) -> Path:
@@ -288,136 +398,205 @@ def _prepare_out(out: Path, force: bool) -> Path:
     return out
 
 
-def _launch_bus(
-    scenario: Scenario,
-    scenario_path: Path,
-    out: Path,
-    run_info: dict[str, Any],
-    *,
-    overrides: Sequence[str],
-    engine: str,
-    listen: str | None,
-    realtime: float | None,
-    progress: TextIO | None,
-    wall0: float,
-    on_start: Callable[[Path], None] | None,
-    insecure: bool = False,
-    zenoh_config: str | None = None,
-    tls: bool = False,
-    affinity: Mapping[str, frozenset[int]],
-) -> RunResult:
-    run_id = run_info["run_id"]
-    listen = listen or DEFAULT_LISTEN
-    hosts = listen_names(listen)
-    security = (
-        None if insecure else prepare_security(out, scenario, run_id, tls=tls, tls_names=hosts)
+class _BusEngine:
+    """What the two bus engines share: the run's security, its router (a process of its own),
+    the launcher's own session showing the run's progress, and the record read back from the
+    history. A subclass runs the rounds (:meth:`_rounds`), and may start what it needs before
+    the router (:meth:`_before_router`) and close it after the run (:meth:`_after`)."""
+
+    def run(self, run: Run) -> Outcome:
+        options = run.options
+        listen = options.listen or DEFAULT_LISTEN
+        hosts = listen_names(listen)
+        security = (
+            None
+            if options.insecure
+            else prepare_security(
+                run.out, run.scenario, run.run_id, tls=options.tls, tls_names=hosts
+            )
+        )
+        warn_insecure(listen, secure=security is not None)
+        names = ["clock", *run.scenario.participants()]
+        with contextlib.ExitStack() as undo:  # what start-up opened, closed if start-up fails
+            self._before_router(run, names, security, undo)
+            router, endpoint, watch = _start_bus(run, listen, hosts, security, undo)
+            undo.pop_all()  # started: the ``finally`` below closes them
+        prog = _Progress(run.run_id, run.scenario, options.progress)
+        subs = [
+            watch.declare_subscriber(keys.full(run.run_id, keys.tick_log()), prog.on_log),
+            watch.declare_subscriber(keys.full(run.run_id, keys.stop()), prog.on_stop),
+            watch.liveliness().declare_subscriber(
+                keys.full(run.run_id, keys.alive_all()), prog.on_alive, history=True
+            ),
+        ]
+        try:
+            code, error, t_started = self._rounds(run, names, endpoint, prog, security)
+        finally:
+            self._after()
+            prog.show(final=True)
+            for s in subs:
+                s.undeclare()
+            watch.close()
+            refusals = router.close()
+        return _bus_outcome(run, prog, code, error, t_started, refusals)
+
+    def _before_router(
+        self, run: Run, names: list[str], security: Path | None, undo: contextlib.ExitStack
+    ) -> None:
+        """Start what must start before the router (``undo`` closes it if the start fails)."""
+
+    def _rounds(
+        self, run: Run, names: list[str], endpoint: str, prog: _Progress, security: Path | None
+    ) -> tuple[int, str | None, float | None]:
+        """Run the rounds: ``(exit code, error, when every participant was alive)``."""
+        raise NotImplementedError
+
+    def _after(self) -> None:
+        """Close what :meth:`_before_router` started (the run is over, or failed to start)."""
+
+
+def _start_bus(
+    run: Run,
+    listen: str,
+    hosts: tuple[str, ...],
+    security: Path | None,
+    undo: contextlib.ExitStack,
+) -> tuple[RouterProcess, str, Session]:
+    """The run's router and the launcher's own session on it; ``run.json`` names its endpoint
+    (and ``on_start`` is called: the dashboard starts there). ``undo`` closes both if the start
+    fails."""
+    options = run.options
+    router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
+        listen,
+        security=security,
+        zenoh_config=options.zenoh_config,
+        refused_log=None if security is None else run.out / REFUSED_LOG,
     )
-    warn_insecure(listen, secure=security is not None)
-    names = ["clock", *scenario.participants()]
-    options = {
-        "historian": ["--out", str(out), "--engine", engine],
-        "clock": ["--realtime", repr(realtime)] if realtime else [],
+    undo.callback(router.close)
+    if (cpus := cpus_of(options.affinity, ROUTER)) is not None:
+        pin(router.pid, cpus)
+    endpoint = pick_endpoint(router.locators, listen, hosts)
+    watch = open_client(  # the launcher's own session: it shows the run's progress
+        endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
+    )
+    undo.callback(watch.close)
+    run.info["endpoint"] = endpoint
+    run.info["secure"] = security is not None
+    run.info["tls"] = options.tls
+    write_json(run.out / RUN_FILE, run.info)
+    if options.on_start is not None:
+        options.on_start(run.out)  # e.g. the dashboard, whose port may be taken
+    return router, endpoint, watch
+
+
+def _bus_outcome(
+    run: Run,
+    prog: _Progress,
+    code: int,
+    error: str | None,
+    t_started: float | None,
+    refusals: dict[str, Any] | None,
+) -> Outcome:
+    """A bus run's outcome: its record read back from the history, with the run's phases (or,
+    interrupted, what the history holds up to then, said so)."""
+    wall_end = time.perf_counter()
+    history = run.out / "history.sqlite"
+    if prog.stop is not None and not prog.stop.ok and error is None:
+        error = prog.stop.reason
+    if code == INTERRUPTED and history.exists():
+        rec = load_record(history, run.scenario, engine=run.options.engine)
+        rec.wall_s = wall_end - run.wall0
+        extra = {"complete": False, "interrupted_at": prog.t, "router": refusals}
+        return Outcome(code, error, rec, extra)
+    if code != 0:
+        return Outcome(code, error or "run failed")
+    rec = load_record(history, run.scenario, engine=run.options.engine)
+    rec.wall_s = wall_end - run.wall0
+    first, stopped = prog.span or (
+        prog.first_tick_at or t_started or run.wall0,
+        prog.stop_at or wall_end,
+    )
+    rec.phases = {
+        "startup": first - run.wall0,
+        "run": stopped - first,
+        "teardown": wall_end - stopped,
     }
-    common_args = ["--seed", str(scenario.seed), *(f"--set={o}" for o in overrides)]
-    server = None
-    if engine == "processes":  # it imports while the router starts; forks once it listens
-        (out / "logs").mkdir(exist_ok=True)
-        server = ForkServer(  # one interpreter imports and forks every node (runtime/forkserver.py)
-            str(scenario_path),
+    return Outcome(0, None, rec, {"router": refusals})
+
+
+class ProcessesEngine(_BusEngine):
+    """One OS process per node, forked by one fork server (:mod:`runtime.forkserver`) that
+    imports while the router starts and forks once it listens."""
+
+    def __init__(self) -> None:
+        self.server: ForkServer | None = None
+
+    def _before_router(
+        self, run: Run, names: list[str], security: Path | None, undo: contextlib.ExitStack
+    ) -> None:
+        options = run.options
+        (run.out / "logs").mkdir(exist_ok=True)
+        self.server = ForkServer(  # one interpreter imports and forks every node
+            str(run.scenario_path),
             names,
             connect=None,
-            run_id=run_id,
-            logs=out / "logs",
+            run_id=run.run_id,
+            logs=run.out / "logs",
             args=[
-                *options["historian"],
-                *options["clock"],
-                *common_args,
-                *affinity_args(affinity),
+                "--out",
+                str(run.out),
+                "--engine",
+                options.engine,
+                *(["--realtime", repr(options.realtime)] if options.realtime else []),
+                "--seed",
+                str(run.scenario.seed),
+                *(f"--set={o}" for o in options.overrides),
+                *affinity_args(options.affinity),
             ],
             preexec_fn=die_with_parent,
             env=_node_environment(security),
         )
-    with contextlib.ExitStack() as undo:  # what start-up opened, closed if start-up fails
-        if server is not None:
-            undo.callback(server.abandon)
-        router = RouterProcess(  # a process of its own: it audits what it refuses (kernel.audit)
-            listen,
-            security=security,
-            zenoh_config=zenoh_config,
-            refused_log=None if security is None else out / REFUSED_LOG,
-        )
-        undo.callback(router.close)
-        if (cpus := cpus_of(affinity, ROUTER)) is not None:
-            pin(router.pid, cpus)
-        locators = router.locators
-        endpoint = pick_endpoint(locators, listen, hosts)
-        watch = open_client(  # the launcher's own session: it shows the run's progress
-            endpoint, settings=None if security is None else credentials_of(security, LAUNCHER)
-        )
-        undo.callback(watch.close)
-        run_info["endpoint"] = endpoint
-        run_info["secure"] = security is not None
-        run_info["tls"] = tls
-        write_json(out / RUN_FILE, run_info)
-        if on_start is not None:
-            on_start(out)  # e.g. the dashboard, whose port may be taken
-        undo.pop_all()  # started: the run's own ``finally`` below closes them
-    prog = _Progress(run_id, scenario, progress)
-    subs = [
-        watch.declare_subscriber(keys.full(run_id, keys.tick_log()), prog.on_log),
-        watch.declare_subscriber(keys.full(run_id, keys.stop()), prog.on_stop),
-        watch.liveliness().declare_subscriber(
-            keys.full(run_id, keys.alive_all()), prog.on_alive, history=True
-        ),
-    ]
-    t_started: float | None = None
-    code, error = 0, None
-    try:
-        if server is not None:
-            code, error, t_started = _run_processes(server, out, run_info, names, endpoint, prog)
-        else:
-            with pinned_here(cpus_of(affinity, ANY)):
-                code, error, t_started = _run_threads(
-                    scenario,
-                    out,
-                    run_id,
-                    names,
-                    endpoint,
-                    realtime,
-                    engine,
-                    prog,
-                    security,
-                )
-    finally:
-        if server is not None:
-            server.abandon()  # nothing if it forked (its input is closed then); else it goes
-        prog.show(final=True)
-        for s in subs:
-            s.undeclare()
-        watch.close()
-        refusals = router.close()
-    wall_end = time.perf_counter()
-    if prog.stop is not None and not prog.stop.ok and error is None:
-        error = prog.stop.reason
-    if code == INTERRUPTED and (out / "history.sqlite").exists():
-        # what the history holds up to the interruption: a partial summary, said so
-        rec = load_record(out / "history.sqlite", scenario, engine=engine)
-        rec.wall_s = wall_end - wall0
-        summary = write_summary(rec, out, complete=False, interrupted_at=prog.t, router=refusals)
-        write_plots(rec, out, scenario=scenario)
-        return RunResult(code, error, summary, out)
-    if code != 0:
-        return RunResult(code, error or "run failed", {}, out)
-    rec = load_record(out / "history.sqlite", scenario, engine=engine)
-    rec.wall_s = wall_end - wall0
-    first, stopped = prog.span or (
-        prog.first_tick_at or t_started or wall0,
-        prog.stop_at or wall_end,
-    )
-    rec.phases = {"startup": first - wall0, "run": stopped - first, "teardown": wall_end - stopped}
-    summary = write_summary(rec, out, router=refusals)
-    write_plots(rec, out, scenario=scenario)
-    return RunResult(0, None, summary, out)
+        undo.callback(self.server.abandon)
+
+    def _rounds(
+        self, run: Run, names: list[str], endpoint: str, prog: _Progress, security: Path | None
+    ) -> tuple[int, str | None, float | None]:
+        assert self.server is not None  # started before the router
+        return _run_processes(self.server, run.out, run.info, names, endpoint, prog)
+
+    def _after(self) -> None:
+        if self.server is not None:
+            self.server.abandon()  # nothing if it forked (its input is closed then); else it goes
+
+
+class ThreadsEngine(_BusEngine):
+    """Every node and the clock a thread of this process, on one zenoh session
+    (:func:`_run_threads`)."""
+
+    def _rounds(
+        self, run: Run, names: list[str], endpoint: str, prog: _Progress, security: Path | None
+    ) -> tuple[int, str | None, float | None]:
+        options = run.options
+        with pinned_here(cpus_of(options.affinity, ANY)):
+            return _run_threads(
+                run.scenario,
+                run.out,
+                run.run_id,
+                names,
+                endpoint,
+                options.realtime,
+                options.engine,
+                prog,
+                security,
+            )
+
+
+ENGINES_BY_NAME: dict[str, Callable[[], Engine]] = {
+    "processes": ProcessesEngine,
+    "threads": ThreadsEngine,
+    "direct": DirectRun,
+}
+"""Each engine of ``--engine``, made anew for each run."""
 
 
 def _node_environment(security: Path | None) -> dict[str, str]:

@@ -388,3 +388,34 @@ def test_the_circle_rule_catches_a_circle():
     assert import_circles(imports) == [
         frozenset({"agents.wncsca.model", "agents.wncsca.trials", "agents.wncsca.spec"})
     ]
+
+
+# -- ticks only through core/time.py ---------------------------------------------------------
+TICK_MODULE = "core.time"
+
+
+def tick_literals(module: str, source: str) -> list[str]:
+    """Where ``source`` writes the ticks per time unit itself (``1_000_000``, ``1e6``) instead of
+    converting through :mod:`core.time` (``to_ticks``, ``to_units``, ``TICKS_PER_UNIT``)."""
+    if module == TICK_MODULE:
+        return []
+    return [
+        f"{module}:{node.lineno}: {node.value!r} (convert with core.time)"
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.Constant)
+        and type(node.value) in (int, float)
+        and node.value == 1_000_000
+    ]
+
+
+def test_time_is_converted_only_through_core_time():
+    bad: list[str] = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            bad += tick_literals(_module_name(path), path.read_text())
+    assert not bad, "tick arithmetic outside core/time.py:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("source", ["t = x / 1e6\n", "n = round(p * 1_000_000)\n"])
+def test_the_tick_rule_catches_a_literal(source):
+    assert tick_literals("agents.monitor.run_data", source)

@@ -37,6 +37,7 @@ from agents.monitor.columns import SP_SUFFIX, Column, RunLoop, RunShape, resolve
 from agents.monitor.config import MonitorConfig, SecondarySpec, rows_needed
 from agents.monitor.errors import DataError
 from bus_schemas import PlantState, Sample, Setpoint, keys
+from core.time import to_ticks, to_units
 
 __all__ = ["WindowInfo", "RunSeries", "assess_series", "feed_run_record"]
 
@@ -95,7 +96,7 @@ class WindowInfo:
         """JSON-ready, times in the run's unit."""
 
         def units(t: int | None) -> float | None:
-            return None if t is None else t / 1_000_000
+            return None if t is None else to_units(t)
 
         return {
             "loop": self.loop,
@@ -179,7 +180,7 @@ class RunSeries:
         tau_s = run.loops[loop].tau_s
         if tau_s is None:
             raise DataError(f"{loop!r} samples nothing (no sensor)", column=loop)
-        self.tau_s = round(tau_s * 1_000_000)
+        self.tau_s = to_ticks(tau_s)
         cols: list[Column] = []
         for name in columns:
             try:
@@ -313,7 +314,7 @@ class RunSeries:
                         what = "sample of that loop" if c.kind == "meas" else "grid point"
                         raise DataError(
                             f"column {c.name!r}, row {i + 1} (sampled at t = "
-                            f"{r.t_sampled / 1_000_000:g}): missing value (no {what} at or "
+                            f"{to_units(r.t_sampled):g}): missing value (no {what} at or "
                             "before that instant)",
                             column=c.name,
                             row=i + 1,

@@ -50,7 +50,7 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.spec import AgentSpec
 from agents.wncsca.steps import judge_step, test_length
-from core.time import to_ticks
+from core.time import to_ticks, to_units
 from gateway.carrier import PathCarrier
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
@@ -415,7 +415,7 @@ class Coordinator:
                 self.control_periods = dict(step.periods)
                 self.relax_at = when + to_ticks(test_length(self.model))
         previous, self.mode = self.mode, "setpoint_change"
-        note = f"{loop} -> {value:g} at t={when / 1e6:g}"
+        note = f"{loop} -> {value:g} at t={to_units(when):g}"
         if previous != "setpoint_change":
             note += f"; control periods restored and loops closed first (was {previous})"
         return Decision(None, "accept", (note, *judged)), float(value), when
@@ -442,7 +442,7 @@ class Coordinator:
             self._strikes[loop] = 0
             return None
         self._strikes[loop] += 1
-        what = f"{loop}: |y - r| = {deviation:.4g} > alarm {band:g} at t={t / 1e6:g}"
+        what = f"{loop}: |y - r| = {deviation:.4g} > alarm {band:g} at t={to_units(t):g}"
         if self.mode == "steady_state":
             self.mode = "fault_detection"
             return Decision(None, "accept", (f"{what}: steady_state -> fault_detection",))
