@@ -59,7 +59,7 @@ from pydantic import BaseModel
 from bus_schemas import Estimate, Move, Rates, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
 from controllers.registry import MultiLoopContext, build_law, build_multi_loop_law
-from core.behaviour import Behaviour
+from core.behaviour import Behaviour, Timer
 from core.time import to_units
 
 __all__ = ["ControllerBehaviour", "ControllerSpec"]
@@ -130,7 +130,7 @@ class ControllerBehaviour(Behaviour):
         self.closed = True
         self._samples: list[Sample] = []
         self._setpoints_changed = False
-        self._link_periods: dict[str, int] = {}
+        self._senders: dict[str, Timer] = {}  # link -> its transmissions (multi-loop laws)
         if self.multi:
             self.feedforward = None
             self.law = build_multi_loop_law(
@@ -142,14 +142,10 @@ class ControllerBehaviour(Behaviour):
             self._moved = list(spec.moved)
             for name in self._measured:
                 self.subscribe(keys.meas(name), Sample, self._on_meas_of(name))
-            self._end = spec.end
-            self._last_sent: dict[str, int] = {}
-            self._generation: dict[str, int] = {}
             for name in sorted(set(spec.sends) | set(spec.receives)):
                 if name in spec.sends:
-                    self._link_periods[name] = spec.sends[name]
-                    self._generation[name] = 0
-                    self.at(0, self._sender(name, 0))
+                    send = self._sender(name)
+                    self._senders[name] = self.every(spec.sends[name], send, end=spec.end)
                 if name in spec.receives:
                     self.subscribe(keys.link_rx(name), Estimate, self._on_estimate(name))
         else:
@@ -180,19 +176,13 @@ class ControllerBehaviour(Behaviour):
 
         return handle
 
-    def _sender(self, link: str, generation: int) -> Callable[[], None]:
-        """Transmit on ``link`` now and schedule the next transmission a period later (unless
-        a new period has rescheduled the link since: then this timer is stale)."""
+    def _sender(self, link: str) -> Callable[[], None]:
+        """Transmit on ``link`` now (its :class:`~core.behaviour.Timer` fires it every period,
+        up to the end, retimed by the agent: :meth:`_set_link_period`)."""
 
         def send() -> None:
-            if generation != self._generation[link]:
-                return
             values = self.law.transmit(to_units(self.now))
             self.publish(keys.link_tx(link), Estimate(values=tuple(values), t_sent=self.now))
-            self._last_sent[link] = self.now
-            nxt = self.now + self._link_periods[link]
-            if nxt <= self._end:
-                self.at(nxt, self._sender(link, generation))
 
         return send
 
@@ -207,21 +197,14 @@ class ControllerBehaviour(Behaviour):
 
     def _set_link_period(self, link: str, period: int) -> None:
         """Transmit on ``link`` every ``period`` ticks from now on (see the module docstring)."""
-        if period == self._link_periods[link]:
-            return
-        self.log.info("link %s: period %s -> %s ticks", link, self._link_periods[link], period)
-        self._link_periods[link] = period
-        self._generation[link] += 1
-        last = self._last_sent.get(link)
-        nxt = self.now if last is None else max(last + period, self.now)
-        if last == self.now:
-            nxt = self.now + period  # sent in this instant already
-        if nxt <= self._end:
-            self.at(nxt, self._sender(link, self._generation[link]))
+        timer = self._senders[link]
+        before = timer.period
+        if timer.retime(period):  # the phase of its last transmission kept
+            self.log.info("link %s: period %s -> %s ticks", link, before, period)
 
     def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
         for link, period in sorted(rates.link_periods.items()):
-            if link in self._link_periods:
+            if link in self._senders:
                 self._set_link_period(link, period)
         if self.multi:
             return  # loops of multi-loop controllers are not opened or closed by the agent

@@ -37,7 +37,7 @@ from bus_schemas.errors import SchemaError
 from core.errors import ProtocolError
 from core.time import to_units
 
-__all__ = ["Behaviour", "Incoming", "BodyAs", "Handler", "Output"]
+__all__ = ["Behaviour", "Timer", "Incoming", "BodyAs", "Handler", "Output"]
 
 log = logging.getLogger(__name__)
 
@@ -76,12 +76,78 @@ class _Subscription:
     handler: Handler
 
 
+class Timer:
+    """A periodic timer of a behaviour (:meth:`Behaviour.every`) whose period may change while
+    it runs: a sensor told to sample at a new rate, a link told to transmit at a new period.
+
+    It fires at ``start`` and then every period, as one-off timers (:meth:`Behaviour.at`), each
+    firing scheduling the next after its callback. :meth:`retime` keeps the phase of the last
+    firing: the next one is a new period after it, or now if that has passed (a period after
+    now if it fired in this instant); a firing scheduled before the change is stale and does
+    nothing (each scheduling carries a generation). :meth:`cancel` makes every pending firing
+    stale.
+    """
+
+    def __init__(
+        self,
+        behaviour: Behaviour,
+        period: int,
+        callback: Callable[[], None],
+        *,
+        start: int = 0,
+        end: int | None = None,
+    ) -> None:
+        if period <= 0:
+            raise ValueError(f"{behaviour.name}: timer period must be positive, got {period}")
+        self.behaviour = behaviour
+        self.period = period
+        self.callback = callback
+        self.end = end
+        self.last: int | None = None
+        """When it last fired (ticks), ``None`` before its first firing."""
+        self._generation = 0
+        self._schedule(start)
+
+    def retime(self, period: int) -> bool:
+        """Fire every ``period`` ticks from now on, keeping the last firing's phase (see the
+        class docstring); whether the period changed."""
+        if period <= 0:
+            raise ValueError(f"{self.behaviour.name}: timer period must be positive, got {period}")
+        if period == self.period:
+            return False
+        self.period = period
+        self._generation += 1
+        now = self.behaviour.now
+        nxt = now if self.last is None else max(self.last + period, now)
+        if self.last == now:
+            nxt = now + period  # fired in this instant already
+        self._schedule(nxt)
+        return True
+
+    def cancel(self) -> None:
+        """Fire no more (the pending firing is stale)."""
+        self._generation += 1
+
+    def _schedule(self, t: int) -> None:
+        if self.end is None or t <= self.end:
+            self.behaviour.at(t, self._firing(self._generation))
+
+    def _firing(self, generation: int) -> Callable[[], None]:
+        def fire() -> None:
+            if generation != self._generation:
+                return  # retimed or cancelled since it was scheduled
+            self.callback()
+            self.last = self.behaviour.now
+            self._schedule(self.behaviour.now + self.period)
+
+        return fire
+
+
 @dataclass(order=True)
 class _Timer:
     t: int
     order: int
     callback: Callable[[], None] = field(compare=False)
-    period: int | None = field(compare=False, default=None)
 
 
 class _Adapter(logging.LoggerAdapter):  # type: ignore[type-arg]
@@ -113,17 +179,23 @@ class Behaviour:
         self._subs.append(_Subscription(pattern, body_type, handler))
         self._match_cache.clear()
 
-    def every(self, period: int, callback: Callable[[], None], *, start: int = 0) -> None:
-        """Call ``callback`` at ``start``, ``start + period``, ... (ticks)."""
-        if period <= 0:
-            raise ValueError(f"{self.name}: timer period must be positive, got {period}")
-        self._push_timer(start, callback, period)
+    def every(
+        self,
+        period: int,
+        callback: Callable[[], None],
+        *,
+        start: int = 0,
+        end: int | None = None,
+    ) -> Timer:
+        """Call ``callback`` at ``start``, ``start + period``, ... (ticks), up to ``end``
+        (``None``: to the run's end); the :class:`Timer` returned may be retimed or cancelled."""
+        return Timer(self, period, callback, start=start, end=end)
 
     def at(self, t: int, callback: Callable[[], None]) -> None:
         """Call ``callback`` once at time ``t`` (ticks, not in the past)."""
         if t < self.now:
             raise ValueError(f"{self.name}: timer at {t} is before now ({self.now})")
-        self._push_timer(t, callback, None)
+        self._push_timer(t, callback)
 
     def publish(self, rel_key: str, body: BaseModel) -> None:
         """Queue ``body`` on run-relative ``rel_key``; sent stamped with this round."""
@@ -219,8 +291,8 @@ class Behaviour:
             self._match_cache[rel] = hit
         return hit
 
-    def _push_timer(self, t: int, callback: Callable[[], None], period: int | None) -> None:
-        heapq.heappush(self._timers, _Timer(t, self._timer_order, callback, period))
+    def _push_timer(self, t: int, callback: Callable[[], None]) -> None:
+        heapq.heappush(self._timers, _Timer(t, self._timer_order, callback))
         self._timer_order += 1
 
     def _fire_timers(self, t: int) -> None:
@@ -229,7 +301,4 @@ class Behaviour:
                 f"{self.name}: timer due at {self._timers[0].t} skipped (clock at {t})"
             )
         while self._timers and self._timers[0].t == t:
-            timer = heapq.heappop(self._timers)
-            timer.callback()
-            if timer.period is not None:
-                self._push_timer(t + timer.period, timer.callback, timer.period)
+            heapq.heappop(self._timers).callback()

@@ -24,7 +24,7 @@ import numpy as np
 
 from bus_schemas import Move, PlantState, Sample, SamplingPeriod, keys
 from bus_schemas.envelope import RawEnvelope
-from core.behaviour import Behaviour
+from core.behaviour import Behaviour, Timer
 from core.time import to_units
 from plants.integrate import integrator_of
 
@@ -105,13 +105,9 @@ class PlantBehaviour(Behaviour):
         self._records_t: list[int] = []
         self._records_x: list[list[float]] = []
         self.noise = dict(spec.noise)
-        self.periods: dict[str, int] = {}
-        self._last_sample: dict[str, int] = {}
-        self._generation: dict[str, int] = {}
+        self.samplers: dict[str, Timer] = {}
         for sensor, period in spec.sensors.items():
-            self.periods[sensor] = period
-            self._generation[sensor] = 0
-            self.at(0, self._sampler(sensor, 0))
+            self.samplers[sensor] = self.every(period, self._sampler(sensor), end=self.end)
             key = keys.sampling(self.name, sensor)
             self.subscribe(key, SamplingPeriod, self._on_period(sensor))
         for input_name in self.model.input_names:  # loop actuators and scheduled disturbances
@@ -191,16 +187,14 @@ class PlantBehaviour(Behaviour):
         self._send_records()
         self._applied.clear()
 
-    def _sampler(self, signal: str, generation: int) -> Any:
-        """A sample of ``signal`` now, and the next one a period later (unless a new period has
-        rescheduled the sensor since: then this timer is stale and does nothing)."""
+    def _sampler(self, signal: str) -> Any:
+        """A sample of ``signal`` now (its :class:`~core.behaviour.Timer` fires it every
+        period, up to the end, retimed by the network: :meth:`_on_period`)."""
         index = self.model.output_names.index(signal)
         sigma = self.noise.get(signal, 0.0)
         rng = self.spec.rngs[signal]
 
         def sample() -> None:
-            if generation != self._generation[signal]:
-                return
             self._integrate_to(self.now)
             y = float(self.model.outputs(self.x)[index])
             if sigma > 0.0:
@@ -208,28 +202,15 @@ class PlantBehaviour(Behaviour):
             self.publish(keys.sensor(self.name, signal), Sample(value=y, t_sampled=self.now))
             self._send_records()
             self._applied.clear()  # published: what came before it stands
-            self._last_sample[signal] = self.now
-            nxt = self.now + self.periods[signal]
-            if nxt <= self.end:
-                self.at(nxt, self._sampler(signal, generation))
 
         return sample
 
     def _on_period(self, signal: str) -> Any:
         def apply(env: RawEnvelope, msg: SamplingPeriod) -> None:
-            if msg.period == self.periods[signal]:
-                return
-            self.log.info(
-                "sensor %s: period %s -> %s ticks", signal, self.periods[signal], msg.period
-            )
-            self.periods[signal] = msg.period
-            self._generation[signal] += 1
-            last = self._last_sample.get(signal)
-            nxt = self.now if last is None else max(last + msg.period, self.now)
-            if last == self.now:
-                nxt = self.now + msg.period  # sampled in this instant already
-            if nxt <= self.end:
-                self.at(nxt, self._sampler(signal, self._generation[signal]))
+            timer = self.samplers[signal]
+            before = timer.period
+            if timer.retime(msg.period):  # the phase of its last sample kept
+                self.log.info("sensor %s: period %s -> %s ticks", signal, before, msg.period)
 
         return apply
 
