@@ -26,12 +26,21 @@ __all__ = ["ROOT", "Comparison", "measure_in"]
 
 ROOT = Path(__file__).resolve().parents[1]
 
-_PRELUDE = "import sys\nsys.path.insert(0, {root!r})\n"
+_PRELUDE = """import importlib.util, sys
+sys.path.insert(0, {root!r})
+if importlib.util.find_spec("runtime.scenario") is not None:  # a tree before issue 34's package
+    from runtime.scenario import load_scenario
+else:
+    from scenario import load_scenario
+"""
+"""What every measurement starts with: its tree first on ``sys.path``, and that tree's
+``load_scenario`` (``runtime.scenario`` before the scenario package, ``scenario`` after)."""
 
 
 def measure_in(root: Path, snippet: str) -> Any:
     """Run ``snippet`` (it prints one JSON value last) in a fresh interpreter with the tree at
-    ``root`` first on ``sys.path``; the snippet finds the tree's root in ``ROOT``."""
+    ``root`` first on ``sys.path``; the snippet finds the tree's root in ``ROOT`` and its
+    ``load_scenario`` defined (:data:`_PRELUDE`)."""
     code = _PRELUDE.format(root=str(root)) + f"ROOT = {str(root)!r}\n" + snippet
     done = subprocess.run(
         [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=False

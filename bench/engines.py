@@ -62,7 +62,6 @@ DIRECT_MS = """
 import json, time
 from kernel.bus import open_client, open_router
 from runtime.direct import simulate
-from scenario import load_scenario
 scenario = load_scenario(ROOT + "/scenarios/jcstr_benchmark.yaml")
 simulate(scenario)
 best = float("inf")

@@ -23,11 +23,6 @@ import hashlib, json, sys, tempfile
 from pathlib import Path
 from runtime.direct import simulate
 from runtime.report import save_record
-import importlib.util
-if importlib.util.find_spec("runtime.scenario") is not None:  # a tree before the scenario package
-    from runtime.scenario import load_scenario  # (issue 34): its own
-else:
-    from scenario import load_scenario
 
 WALL = {"decision_time_s", "wall_s", "phases_s", "timing"}
 
