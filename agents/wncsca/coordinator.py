@@ -90,6 +90,31 @@ class Negotiation:
     links: list[LinkVerdict] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class _Read:
+    """A proposal as read (:meth:`Coordinator._read_proposal`)."""
+
+    pid: int
+    paths: Any
+    """The loops' paths (as proposed: validated as they are judged)."""
+    link_paths: dict[str, Any]
+    """The links' paths (``<link>.link``)."""
+    all_paths: Any
+    """Every path, as proposed (a TSCH manager schedules them all)."""
+    capacity: Any
+    """The TSCH manager's capacity (``None``: not a TSCH gateway)."""
+    others: dict[str, float]
+    """The delays of the loops other networks carry (0 where none is accepted yet)."""
+
+
+class _Ended(Exception):
+    """A step of a negotiation ends it (a refusal, a rejection) with ``negotiation``."""
+
+    def __init__(self, negotiation: Negotiation) -> None:
+        super().__init__(negotiation.decision.verdict)
+        self.negotiation = negotiation
+
+
 class Coordinator:
     """The WNCSCA of one run.
 
@@ -171,86 +196,25 @@ class Coordinator:
 
     # -- proposals -------------------------------------------------------------------------
     def on_proposal(self, network: str, body: Any) -> Negotiation:
-        """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``."""
-        raw_id = body.get("id") if isinstance(body, Mapping) else None
-        valid_id = isinstance(raw_id, int) and not isinstance(raw_id, bool) and raw_id >= 0
-        if network not in self.carried or not self.spec.is_wireless(network):
-            return self._refused(
-                network, raw_id if valid_id else None, f"{network!r} is no gateway"
-            )
-        if not isinstance(body, Mapping) or not valid_id:
-            return self._refused(network, None, "id: missing or not an integer >= 0")
-        pid = cast(int, raw_id)  # valid_id: an int >= 0 (mypy does not narrow through it)
-        others = {n: d for n, d in self.delays.items() if n not in self.carried[network]}
-        missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
-        for n in missing:  # a loop of another gateway with no accepted configuration yet
-            others[n] = 0.0
-        paths = body.get("paths")
+        """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``: read it,
+        judge the control paths and the links, check the periods against a TSCH manager's
+        capacity, and commit what was accepted (each step may end the negotiation: a refusal,
+        a rejection)."""
         try:
-            capacity = read_capacity(body.get("tsch"))
-        except ValueError as err:
-            return self._refused(network, pid, f"tsch: {err}")
-        link_paths: dict[str, Any] = {}
-        if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
-            link_paths = {
-                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.spec.links
-            }
-            paths = {p: e for p, e in paths.items() if p not in link_paths}
-        risk: Assignment | None = None
-        if self.config.method == "chance" and self.carried[network]:
-            try:
-                decision, risk = self._judge_by_risk(network, pid, paths, others)
-            except ProposalError as err:
-                return self._refused(network, pid, str(err))
-        else:
-            decision = decide(
-                pid,
-                paths,
-                self.bounds,
-                self.config.estimate,
-                wired=others,
-                quantile=self.config.confidence,
-            )
-        if decision.verdict == "refuse":
-            return Negotiation(decision, network)
-        try:
-            link_delays = self._link_delays(network, link_paths)
-        except ProposalError as err:
-            return self._refused(network, pid, str(err))
-        links = self._judge_links(network, link_delays)
-        rejected = [v for v in links if v.verdict == "reject"]
-        if decision.verdict == "reject" or rejected:
-            decision = _with_links(decision, links)
-            return Negotiation(decision, network, links=links)
-        decision = _with_links(decision, links)
-        delays = {**self.delays, **{n: decision.delays[n] for n in self.carried[network]}}
-        manager = None
-        if capacity is not None and isinstance(body.get("paths"), Mapping):
-            manager = Manager(capacity, body["paths"])
-        result = None
-        if self.carried[network]:
-            weights = _weights(paths, self.loops)
-            result = risk if risk is not None else assign(self.model, delays, weights)
-            if manager is not None and result.feasible:
-                link_periods = {**self.link_periods}
-                for v in links:
-                    link_periods.update(v.periods)
-                schedule = manager.schedule(result.periods, link_periods)
-                if not schedule.feasible:  # the manager cannot: like a violated limit
-                    reason = describe(result.periods, schedule)
-                    rejected_ = replace(
-                        decision,
-                        verdict="reject",
-                        reasons=(*decision.reasons, reason),
-                        offending=manager.offending(schedule),
-                    )
-                    return Negotiation(rejected_, network, links=links)
+            read = self._read_proposal(network, body)
+            decision, risk = self._judge_control(network, read)
+            decision, links, link_delays = self._judge_proposed_links(network, read, decision)
+            delays = {**self.delays, **{n: decision.delays[n] for n in self.carried[network]}}
+            manager = self._manager(read)
+            result = self._periods(network, read, decision, links, delays, risk, manager)
+        except _Ended as ended:
+            return ended.negotiation
         self.link_delays.update(link_delays)
         for v in links:
             self.link_periods.update(v.periods)
         self.delays = delays
-        self.accepted[network] = pid
-        self.proposal = pid
+        self.accepted[network] = read.pid
+        self.proposal = read.pid
         if manager is not None:
             self.managers[network] = manager
         if result is None:  # a network carrying links only: no periods to negotiate
@@ -260,8 +224,114 @@ class Coordinator:
             self._relaxed = None  # a new negotiation ends any tightened transient
         self.predicted = dict(result.overshoot_pct)
         self.method = result.method
-        energy = self.energy(network, paths)
+        energy = self.energy(network, read.paths)
         return Negotiation(decision, network, result, energy, links)
+
+    def _read_proposal(self, network: str, body: Any) -> _Read:
+        """The proposal's id, its loops' and its links' paths and its TSCH capacity, and the
+        delays of the loops other networks carry; refused (:class:`_Ended`) if malformed."""
+        raw_id = body.get("id") if isinstance(body, Mapping) else None
+        valid_id = isinstance(raw_id, int) and not isinstance(raw_id, bool) and raw_id >= 0
+        if network not in self.carried or not self.spec.is_wireless(network):
+            pid_ = raw_id if valid_id else None
+            raise _Ended(self._refused(network, pid_, f"{network!r} is no gateway"))
+        if not isinstance(body, Mapping) or not valid_id:
+            raise _Ended(self._refused(network, None, "id: missing or not an integer >= 0"))
+        pid = cast(int, raw_id)  # valid_id: an int >= 0 (mypy does not narrow through it)
+        others = {n: d for n, d in self.delays.items() if n not in self.carried[network]}
+        missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
+        for n in missing:  # a loop of another gateway with no accepted configuration yet
+            others[n] = 0.0
+        paths = body.get("paths")
+        try:
+            capacity = read_capacity(body.get("tsch"))
+        except ValueError as err:
+            raise _Ended(self._refused(network, pid, f"tsch: {err}")) from err
+        link_paths: dict[str, Any] = {}
+        if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
+            link_paths = {
+                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.spec.links
+            }
+            paths = {p: e for p, e in paths.items() if p not in link_paths}
+        all_paths = body.get("paths")
+        return _Read(pid, paths, link_paths, all_paths, capacity, others)
+
+    def _judge_control(self, network: str, read: _Read) -> tuple[Decision, Assignment | None]:
+        """III.E step 2 on the control paths: by the bounds (the paper's and the fast method),
+        or by the risk (the chance method, which finds the periods too); refused
+        (:class:`_Ended`) if a path is malformed."""
+        if self.config.method == "chance" and self.carried[network]:
+            try:
+                decision, risk = self._judge_by_risk(network, read.pid, read.paths, read.others)
+            except ProposalError as err:
+                raise _Ended(self._refused(network, read.pid, str(err))) from err
+        else:
+            decision = decide(
+                read.pid,
+                read.paths,
+                self.bounds,
+                self.config.estimate,
+                wired=read.others,
+                quantile=self.config.confidence,
+            )
+            risk = None
+        if decision.verdict == "refuse":
+            raise _Ended(Negotiation(decision, network))
+        return decision, risk
+
+    def _judge_proposed_links(
+        self, network: str, read: _Read, decision: Decision
+    ) -> tuple[Decision, list[LinkVerdict], dict[str, float]]:
+        """The link groups under the proposal's link delays, joined to the decision on the
+        loops; a rejection of either ends the negotiation (:class:`_Ended`)."""
+        try:
+            link_delays = self._link_delays(network, read.link_paths)
+        except ProposalError as err:
+            raise _Ended(self._refused(network, read.pid, str(err))) from err
+        links = self._judge_links(network, link_delays)
+        rejected = [v for v in links if v.verdict == "reject"]
+        decision = _with_links(decision, links)
+        if decision.verdict == "reject" or rejected:
+            raise _Ended(Negotiation(decision, network, links=links))
+        return decision, links, link_delays
+
+    def _manager(self, read: _Read) -> Manager | None:
+        """The TSCH manager the proposal describes (``None``: not a TSCH gateway)."""
+        if read.capacity is None or not isinstance(read.all_paths, Mapping):
+            return None
+        return Manager(read.capacity, read.all_paths)
+
+    def _periods(
+        self,
+        network: str,
+        read: _Read,
+        decision: Decision,
+        links: list[LinkVerdict],
+        delays: Mapping[str, float],
+        risk: Assignment | None,
+        manager: Manager | None,
+    ) -> Assignment | None:
+        """III.E step 3: the control periods under the accepted delays (the chance method's
+        from its judgement), which a TSCH manager must be able to schedule, else the proposal
+        is rejected (:class:`_Ended`); ``None`` for a network carrying links only."""
+        if not self.carried[network]:
+            return None
+        weights = _weights(read.paths, self.loops)
+        result = risk if risk is not None else assign(self.model, delays, weights)
+        if manager is not None and result.feasible:
+            link_periods = {**self.link_periods}
+            for v in links:
+                link_periods.update(v.periods)
+            schedule = manager.schedule(result.periods, link_periods)
+            if not schedule.feasible:  # the manager cannot: like a violated limit
+                rejected = replace(
+                    decision,
+                    verdict="reject",
+                    reasons=(*decision.reasons, describe(result.periods, schedule)),
+                    offending=manager.offending(schedule),
+                )
+                raise _Ended(Negotiation(rejected, network, links=links))
+        return result
 
     def _judge_by_risk(
         self, network: str, pid: int, paths: Any, others: Mapping[str, float]
