@@ -40,7 +40,16 @@ from gateway.topology import Interference, LinkDegraded, NodeDown, NodeUp, Topol
 from gateway.tsch.mac import Outcome
 from gateway.tsch.network import TschNetwork, effective_links, link_quality_of
 
-__all__ = ["CarrierSpec", "PathCarrier", "Carried", "SENSOR", "ACTUATOR", "LINK"]
+__all__ = [
+    "CarrierSpec",
+    "PathCarrier",
+    "initial_routes",
+    "initial_hops",
+    "Carried",
+    "SENSOR",
+    "ACTUATOR",
+    "LINK",
+]
 
 SENSOR, ACTUATOR, LINK = "sensor", "actuator", "link"
 _STREAM = {SENSOR: 0, ACTUATOR: 1, LINK: 4}  # generator streams of a path's data
@@ -100,6 +109,55 @@ class CarrierSpec:
     traces: Mapping[str, Any] = field(default_factory=dict)
 
 
+def initial_routes(
+    spec: CarrierSpec,
+) -> tuple[Topology | None, Any, dict[tuple[str, str], Route | None]]:
+    """The routes of ``spec``'s network before the run: its topology (``None`` for a wired
+    network; over a TSCH network's links as its link quality draws them, with that quality)
+    and the route of every path it routes, ``(loop or link, direction) -> Route`` (``None``:
+    down). What :class:`PathCarrier` starts from, and all a hop count needs
+    (:func:`initial_hops`), without the MAC, the energy or the generators."""
+    cfg = spec.gateway
+    routes: dict[tuple[str, str], Route | None] = {}
+    if cfg is None:
+        return None, None, routes
+    topology_config, quality = cfg.topology, None
+    if cfg.mac == "tsch":
+        links_rng = np.random.default_rng(
+            [spec.seed, zlib.crc32(spec.node.encode()), _TSCH_LINKS_STREAM]
+        )
+        quality = link_quality_of(cfg.tsch, cfg.topology, links_rng)
+        topology_config = effective_links(cfg.tsch, cfg.topology, quality)
+    topology = Topology(topology_config)
+    gateway = cfg.gateway_node()
+    for name, link in spec.links.items():
+        topology.add_path(f"{name}.link", link.source_node, link.dest_node)
+        routes[name, LINK] = topology.routes()[f"{name}.link"]
+    for name, loop in spec.loops.items():
+        if loop.sensor is not None:
+            topology.add_path(f"{name}.sensor", loop.sensor_node, gateway)
+            routes[name, SENSOR] = topology.routes()[f"{name}.sensor"]
+        if loop.actuator_node is not None:
+            topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
+            routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
+    return topology, quality, routes
+
+
+def initial_hops(spec: CarrierSpec) -> dict[str, int]:
+    """Loop -> hops of its sensor path before the run (0 wired or without a sensor, -1 down),
+    for every loop ``spec``'s network carries: what a run's record names each loop's path
+    with."""
+    _, _, routes = initial_routes(spec)
+    out = {}
+    for name in spec.loops:
+        if (name, SENSOR) not in routes:
+            out[name] = 0  # a wired path, or an actuator-only loop over a gateway
+        else:
+            route = routes[name, SENSOR]
+            out[name] = -1 if route is None else route.n_hops
+    return out
+
+
 class PathCarrier:
     """The loop paths of one network node, from its :class:`CarrierSpec`."""
 
@@ -115,21 +173,8 @@ class PathCarrier:
             (loop, SENSOR): iter([None if d is None else to_ticks(d) for d in trace])
             for loop, trace in spec.traces.items()
         }
-        self.routes: dict[tuple[str, str], Route | None] = {}
-        topology = None
         self.wireless = cfg is not None
         self.tsch: TschNetwork | None = None
-        quality = None
-        if cfg is not None:
-            topology_config = cfg.topology
-            if cfg.mac == "tsch":
-                links_rng = np.random.default_rng(
-                    [spec.seed, zlib.crc32(node.encode()), _TSCH_LINKS_STREAM]
-                )
-                quality = link_quality_of(cfg.tsch, cfg.topology, links_rng)
-                topology_config = effective_links(cfg.tsch, cfg.topology, quality)
-            topology = Topology(topology_config)
-            gateway = cfg.gateway_node()
         paths = [(n, d) for n in self.loops for d in (SENSOR, ACTUATOR)]
         for name, direction in [*paths, *((n, LINK) for n in self.links)]:
             self._rng[name, direction] = np.random.default_rng(
@@ -140,25 +185,16 @@ class PathCarrier:
                     _STREAM[direction],
                 ]
             )
+        topology, quality, self.routes = initial_routes(spec)
         for name, link in self.links.items():
             if topology is None:
                 self._const[name, LINK] = to_ticks(link.delay)
-                continue
-            topology.add_path(f"{name}.link", link.source_node, link.dest_node)
-            self.routes[name, LINK] = topology.routes()[f"{name}.link"]
         for name, loop in self.loops.items():
             if topology is None:
                 self._const[name, SENSOR] = to_ticks(loop.tau_d)
                 self._const[name, ACTUATOR] = to_ticks(loop.tau_a)
-                continue
-            if loop.sensor is not None:
-                topology.add_path(f"{name}.sensor", loop.sensor_node, gateway)
-                self.routes[name, SENSOR] = topology.routes()[f"{name}.sensor"]
-            if loop.actuator_node is None:
+            elif loop.actuator_node is None:
                 self._const[name, ACTUATOR] = to_ticks(loop.tau_a)
-            else:
-                topology.add_path(f"{name}.actuator", gateway, loop.actuator_node)
-                self.routes[name, ACTUATOR] = topology.routes()[f"{name}.actuator"]
         self.topology = topology
         self.periods = {n: lp.tau_s for n, lp in self.loops.items() if lp.tau_s is not None}
         self.link_periods = {n: lk.period for n, lk in self.links.items()}

@@ -50,7 +50,7 @@ from core.errors import ConfigError
 from core.record import RunRecord, Simulate
 from core.time import to_ticks
 from gateway.behaviour import NetworkSpec
-from gateway.carrier import CarrierSpec, PathCarrier
+from gateway.carrier import CarrierSpec, PathCarrier, initial_hops
 from plants.behaviour import PlantSpec
 from scenario.schema import GatewayNodeConfig, NetworkNodeConfig, ScenarioSchema
 
@@ -145,11 +145,11 @@ def carrier_spec(scenario: ScenarioSchema, name: str) -> CarrierSpec:
 
 
 def path_hops(scenario: ScenarioSchema) -> dict[str, int]:
-    """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario."""
+    """Loop -> hops of its sensor path (0 wired, -1 down), for every loop of the scenario: from
+    each network's routes alone (:func:`gateway.carrier.initial_hops`), not its whole carrier."""
     out: dict[str, int] = {}
     for name in scenario.carriers():
-        carrier = PathCarrier(carrier_spec(scenario, name))
-        out.update({loop: carrier.hops(loop) for loop in carrier.loops})
+        out.update(initial_hops(carrier_spec(scenario, name)))
     return out
 
 

@@ -8,7 +8,7 @@ import pytest
 from core.errors import ConfigError
 from core.record import summarize
 from core.time import to_ticks
-from gateway.carrier import ACTUATOR, SENSOR, PathCarrier
+from gateway.carrier import ACTUATOR, SENSOR, PathCarrier, initial_hops
 from runtime.direct import simulate
 from scenario import load_scenario
 from scenario.views import carrier_spec, path_hops
@@ -133,3 +133,14 @@ def test_configurations_carry_the_three_delay_estimates_and_energy():
     assert max(battery, key=battery.get) == "r2"
     for name in battery:
         assert 0.0 < nodes[name]["energy_mAh"] and nodes[name]["battery_pct"] < 100.0
+
+
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_the_hops_a_record_names_are_the_carriers_own(path):
+    """``initial_hops`` reads the routes alone (no MAC, energy or generators): the hops a run's
+    record names each loop's path with are those of the whole carrier a network node builds."""
+    scenario = load_scenario(path)
+    for name in scenario.carriers():
+        spec = carrier_spec(scenario, name)
+        carrier = PathCarrier(spec)
+        assert initial_hops(spec) == {loop: carrier.hops(loop) for loop in carrier.loops}, name
