@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from dashboard.server import Dashboard, serve
+from kernel.lifetime import die_with_parent
 from runtime.security import is_loopback_host
 
 __all__ = ["DEFAULT_PORT", "add_arguments", "port_number", "run", "spawn"]
@@ -73,7 +74,7 @@ def spawn(run_dir: Path, port: int) -> subprocess.Popen[bytes]:
     """Start ``wncs dashboard RUN_DIR --port PORT`` as a child process (``wncs run
     --dashboard``): the run never shares a process, or a GIL, with its observer, and the
     observer runs at a lower CPU priority (``nice`` 10), so on a loaded machine the run's
-    nodes go first."""
+    nodes go first; it ends with the run's process, however that ends."""
     return subprocess.Popen(
         [sys.executable, "-m", "cli", "dashboard", str(run_dir), "--port", str(port)],
         stdin=subprocess.DEVNULL,
@@ -82,4 +83,7 @@ def spawn(run_dir: Path, port: int) -> subprocess.Popen[bytes]:
 
 
 def _lower_priority() -> None:
+    """The dashboard child's start: a lower CPU priority, and it ends with ``wncs run`` (a
+    ``kill -9`` of the run must not leave it serving: :func:`kernel.lifetime.die_with_parent`)."""
     os.nice(10)
+    die_with_parent()

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import json
+import os
+import signal
+import subprocess
 import threading
 import time
 from pathlib import Path
@@ -84,6 +88,16 @@ def wait_until(predicate, *, timeout: float, what: str, interval: float = 0.02) 
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         ticker.wait(interval)
+
+
+def kill_group(proc: subprocess.Popen) -> None:
+    """SIGKILL to what is left of ``proc``'s process group (started with
+    ``start_new_session=True``): a test that fails or times out leaves none of its processes
+    (a run, its router, its dashboard) behind."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=30)
 
 
 def launch_aside(scenario: Path, out: Path, **options: Any) -> tuple[threading.Thread, dict]:

@@ -23,7 +23,7 @@ import pytest
 from playwright.sync_api import sync_playwright
 
 from bus_schemas import keys
-from tests.conftest import SCENARIOS, wait_until
+from tests.conftest import SCENARIOS, kill_group, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -66,6 +66,7 @@ def test_demo_run_watched_and_acted_on_in_a_browser(tmp_path):
         stdout=log.open("w"),
         stderr=subprocess.STDOUT,
         text=True,
+        start_new_session=True,  # its group: what is left of it is killed at the end
     )
     try:
         with sync_playwright() as pw:
@@ -148,7 +149,10 @@ def test_demo_run_watched_and_acted_on_in_a_browser(tmp_path):
             )
         finally:
             run.send_signal(signal.SIGINT)
-            run.wait(timeout=60)
+            try:
+                run.wait(timeout=60)
+            finally:
+                kill_group(run)  # a failed test leaves no run, router or dashboard serving
     assert run.returncode == 0, log.read_text()
     assert (out / "dashboard.png").stat().st_size > 10_000
     with sqlite3.connect(out / "history.sqlite") as db:
