@@ -22,7 +22,8 @@ and with which secondary measurement (Lakshminarayanan et al. 2006, variance dec
 * :mod:`agents.monitor.run_data` -- a loop's routine data from a run's messages (live or
   recorded): alignment, sliding window.
 * :mod:`agents.monitor.behaviour` -- the monitor on the bus (``monitor/assessment/<loop>``).
-* :mod:`runtime.assess` and :mod:`agents.monitor.report` -- ``wncs assess`` and its text;
-  :mod:`runtime.run_files` reads a run directory for it (application layer, as are the
-  plant-wide :mod:`agents.monitor.audit` and :mod:`agents.monitor.audit_report`).
+* :mod:`agents.monitor.report` -- the text of an assessment; :mod:`agents.monitor.audit` and
+  :mod:`agents.monitor.audit_report` -- the plant-wide audit and its tables. ``wncs assess``
+  itself (:mod:`runtime.assess`) and the reading of run directories for it
+  (:mod:`runtime.run_files`) are in the application layer.
 """
