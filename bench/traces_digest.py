@@ -23,6 +23,7 @@ import hashlib, json, sys, tempfile
 from pathlib import Path
 from runtime.direct import simulate
 from runtime.report import save_record
+# load_scenario is the tree's own, from the prelude of every measurement (bench/against.py)
 
 WALL = {"decision_time_s", "wall_s", "phases_s", "timing"}
 

@@ -259,8 +259,12 @@ def check_agent(s: ScenarioSchema) -> None:
 
 def check_monitors(s: ScenarioSchema) -> None:
     """A monitor's loop and columns exist, and its loop has samples."""
-    for name, node in s.nodes_of(MonitorNodeConfig).items():
-        node.check(run_shape(s), name)
+    monitors = s.nodes_of(MonitorNodeConfig)
+    if not monitors:
+        return
+    run = run_shape(s)  # builds every plant: once for all monitors
+    for name, node in monitors.items():
+        node.check(run, name)
         if s.loops[node.loop].sensor is None:
             raise ValueError(f"nodes.{name}.loop: loop {node.loop!r} is actuator-only (no samples)")
 

@@ -206,10 +206,11 @@ def operator_spec(scenario: ScenarioSchema, name: str) -> OperatorSpec:
     )
 
 
-def agent_config(scenario: ScenarioSchema) -> WncscaConfig:
-    """The configuration of the scenario's agent node, or the defaults if it has none (what
-    ``wncs analyze`` judges a scenario without an agent with)."""
-    name = scenario.agent_node()
+def agent_config(scenario: ScenarioSchema, name: str | None = None) -> WncscaConfig:
+    """The configuration of agent node ``name`` (default: the scenario's agent), or the
+    defaults if the scenario has none (what ``wncs analyze`` judges a scenario without an agent
+    with)."""
+    name = name or scenario.agent_node()
     return scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
 
 
@@ -310,9 +311,7 @@ def agent_spec(
 ) -> AgentSpec:
     """What agent node ``name`` of ``scenario`` knows of its run (``name`` ``None``: the
     scenario's agent, or one with the default configuration; ``config`` replaces the node's)."""
-    name = name or scenario.agent_node()
-    if config is None:
-        config = scenario.nodes_of(WncscaConfig)[name] if name else WncscaConfig()
+    config = config or agent_config(scenario, name)
     groups: tuple[LinkGroup, ...] = ()
     if config.links:
         groups = tuple(
@@ -324,7 +323,6 @@ def agent_spec(
             )
         )
     return AgentSpec(
-        name=name or "wncsca",
         config=config,
         closed_loop=closed_loop_spec(scenario, config),
         seed=scenario.seed,
@@ -361,7 +359,13 @@ def loop_model(
     """The agent's model of ``scenario`` (``config`` defaults to its agent's), its trials run
     by ``simulate``."""
     config = config or agent_config(scenario)
-    spec = closed_loop_spec(scenario, config)
+    return _loop_model(scenario, closed_loop_spec(scenario, config), config, simulate)
+
+
+def _loop_model(
+    scenario: ScenarioSchema, spec: ClosedLoopSpec, config: WncscaConfig, simulate: Simulate
+) -> LoopModel:
+    """The agent's model of ``spec``, its trials run by ``simulate`` on ``scenario``'s model."""
     return LoopModel(Trials(spec, ScenarioSimulator(scenario, spec, simulate)), config)
 
 
@@ -375,8 +379,7 @@ def coordinator(
     """The coordination agent of ``scenario`` (its node ``name``, default the scenario's agent),
     its model's trials run by ``simulate``."""
     spec = agent_spec(scenario, name, config)
-    simulator = ScenarioSimulator(scenario, spec.closed_loop, simulate)
-    return Coordinator(spec, LoopModel(Trials(spec.closed_loop, simulator), spec.config))
+    return Coordinator(spec, _loop_model(scenario, spec.closed_loop, spec.config, simulate))
 
 
 def agent_behaviour(name: str, scenario: ScenarioSchema, simulate: Simulate) -> WncscaBehaviour:

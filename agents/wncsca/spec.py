@@ -146,7 +146,6 @@ class LinkSpec:
 class AgentSpec:
     """Everything the coordination agent knows of its run (see the module docstring)."""
 
-    name: str
     config: WncscaConfig
     closed_loop: ClosedLoopSpec
     seed: int

@@ -30,11 +30,6 @@ class Trials:
         self.benchmark: dict[str, float] = spec.benchmark
         self.fingerprint = spec.fingerprint
 
-    @property
-    def end_time(self) -> float:
-        """The test's length (time units)."""
-        return self.spec.end_time
-
     def _trial(
         self,
         periods: Mapping[str, float],

@@ -135,12 +135,15 @@ def test_configurations_carry_the_three_delay_estimates_and_energy():
         assert 0.0 < nodes[name]["energy_mAh"] and nodes[name]["battery_pct"] < 100.0
 
 
-@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
-def test_the_hops_a_record_names_are_the_carriers_own(path):
-    """``initial_hops`` reads the routes alone (no MAC, energy or generators): the hops a run's
-    record names each loop's path with are those of the whole carrier a network node builds."""
-    scenario = load_scenario(path)
-    for name in scenario.carriers():
-        spec = carrier_spec(scenario, name)
-        carrier = PathCarrier(spec)
-        assert initial_hops(spec) == {loop: carrier.hops(loop) for loop in carrier.loops}, name
+@pytest.mark.parametrize(
+    ("scenario", "network", "hops"),
+    [
+        # seed 000's demo: the gateway's first proposal routes level over 3 hops and
+        # temperature over 2 (README, docs/seeds/000-wncsca.md)
+        ("jcstr_wncs.yaml", "network", {"level": 3, "temperature": 2}),
+        ("jcstr_benchmark.yaml", "network", {"level": 0, "temperature": 0}),  # wired
+    ],
+)
+def test_the_hops_a_record_names_are_the_routes_first_proposed(scenario, network, hops):
+    """``initial_hops`` reads the routes alone (no MAC, energy or generators)."""
+    assert initial_hops(carrier_spec(load_scenario(SCENARIOS / scenario), network)) == hops
