@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictStr, model_validator
 
 __all__ = [
     "Sample",
@@ -88,7 +88,7 @@ class Setpoint(BaseModel):
     """Largest set-point magnitude: a set point is a physical value; beyond this a law's
     arithmetic could overflow to infinity."""
 
-    value: Finite = Field(ge=-LIMIT, le=LIMIT)
+    value: Finite = Field(ge=-LIMIT, le=LIMIT, strict=True)
     t_apply: int | None = Field(
         default=None,
         ge=0,
@@ -175,15 +175,24 @@ class DelayDistribution(BaseModel):
         return self
 
 
+EstimateName = Literal["timestamps", "ping", "hops"]
+"""The paper's three path-delay estimates (seed 000, III.E step 1)."""
+
+Delay = Annotated[float, Field(strict=True, ge=0, allow_inf_nan=False)]
+"""A delay in time units: a finite number >= 0 (an int is taken as a float, a bool or a string
+is not a number)."""
+
+
 class PathConfig(BaseModel):
     """One routed path of a network configuration, with the paper's three delay estimates."""
 
     model_config = _FROZEN
 
-    hops: int = Field(description="-1: no route, the path is down")
-    route: list[str]
-    estimates: dict[str, float | None] = Field(
-        description="timestamps / ping / hops -> estimated path delay, time units"
+    hops: int = Field(strict=True, ge=-1, description="-1: no route, the path is down")
+    route: list[str] = Field(default_factory=list, description="the nodes, sensor to sink")
+    estimates: dict[EstimateName, Delay | None] = Field(
+        description="timestamps / ping / hops -> estimated path delay, time units (None: not "
+        "measured)"
     )
     distribution: DelayDistribution | None = Field(
         default=None, description="the model's delay distribution of the route (None: down)"
@@ -304,7 +313,7 @@ class Proposal(BaseModel):
     id: int = Field(ge=0, strict=True, description="increasing per gateway")
     event: str
     source: Literal["initial", "scenario", "injected", "alternative", "battery"]
-    paths: dict[str, PathConfig]
+    paths: dict[StrictStr, PathConfig]
     tsch: TschCapacity | None = Field(
         default=None, description="a TSCH gateway: what its manager schedules with"
     )

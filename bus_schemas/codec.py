@@ -25,6 +25,7 @@ __all__ = [
     "decode_envelope",
     "decode_body",
     "validate_body",
+    "problems",
     "decode",
     "digest",
 ]
@@ -91,6 +92,26 @@ def _first_error(err: ValidationError) -> str:
     return f"{loc}: {e['msg']}{more}"
 
 
+def problems(err: ValidationError) -> tuple[str, ...]:
+    """Every error of ``err`` as ``"<dotted field>: <what> (got <input>)"``, in the schema's
+    field order: ``"paths.level.sensor.estimates.hops: Input should be greater than or equal to
+    0 (got -0.1)"``, ``"paths: missing"``, ``"paths.level.sensor.estimates: key 'x': Input
+    should be 'timestamps', 'ping' or 'hops'"``."""
+    out = []
+    for e in err.errors():
+        loc = [str(p) for p in e["loc"]]
+        key = loc[-2] if loc[-1:] == ["[key]"] else None
+        where = ".".join(loc[:-2] if key is not None else loc) or "body"
+        if e["type"] == "missing":
+            out.append(f"{where}: missing")
+            continue
+        got = repr(e["input"])
+        got = got if len(got) <= 40 else got[:37] + "..."
+        what = f"key {key}: {e['msg']}" if key is not None else f"{e['msg']} (got {got})"
+        out.append(f"{where}: {what}")
+    return tuple(out)
+
+
 def decode_envelope(raw: bytes) -> RawEnvelope:
     """Unpack and check an envelope; the body is left as a mapping."""
     try:
@@ -118,7 +139,9 @@ def validate_body(body: Any, body_type: type[BodyT]) -> BodyT:
     try:
         return body_type.model_validate(body)
     except ValidationError as err:
-        raise SchemaError(f"bad {body_type.__name__} body: {_first_error(err)}") from err
+        raise SchemaError(
+            f"bad {body_type.__name__} body: {_first_error(err)}", problems(err)
+        ) from err
 
 
 def decode(raw: bytes, body_type: type[BodyT]) -> Envelope[BodyT]:

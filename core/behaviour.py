@@ -18,7 +18,9 @@ agree bit for bit.
 
 A message that fails to validate against a handler's schema, or that a handler refuses
 (:meth:`Behaviour.reject`), is dropped, counted per key and logged once per key: a node never
-dies of bad input.
+dies of bad input. A subscription that must *answer* a malformed request (the coordination agent
+refuses it with its reason) names an ``on_invalid`` handler instead, which gets the raw body and
+the :class:`~bus_schemas.errors.SchemaError` (its ``problems`` name every field that is wrong).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from bus_schemas.errors import SchemaError
 from core.errors import ProtocolError
 from core.time import to_units
 
-__all__ = ["Behaviour", "Timer", "Incoming", "BodyAs", "Handler", "Output"]
+__all__ = ["Behaviour", "Timer", "Incoming", "BodyAs", "Handler", "InvalidHandler", "Output"]
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +63,10 @@ class Incoming(Protocol):
 Handler = Callable[[Any, Any], None]
 """``handler(envelope, body)``: the body as the subscription's schema, or the raw mapping."""
 
+InvalidHandler = Callable[[Any, Any, SchemaError], None]
+"""``on_invalid(envelope, raw body, error)``: a body that does not fit the subscription's schema
+(the raw body as the engine has it: a mapping, or whatever else was sent)."""
+
 BodyAs = Callable[[type[BaseModel] | None], Any]
 """How an engine hands over a message's body: validated as a schema, or raw (``None``); raises
 :class:`~bus_schemas.errors.SchemaError` when the body does not fit the schema."""
@@ -74,6 +80,7 @@ class _Subscription:
     pattern: str  # run-relative
     body_type: type[BaseModel] | None  # None: the handler gets the raw body mapping
     handler: Handler
+    on_invalid: InvalidHandler | None = None
 
 
 class Timer:
@@ -174,9 +181,19 @@ class Behaviour:
         self._match_cache: dict[str, list[_Subscription]] = {}
 
     # -- declarations (call from __init__) -----------------------------------------------------
-    def subscribe(self, pattern: str, body_type: type[BaseModel] | None, handler: Handler) -> None:
-        """Receive messages on run-relative ``pattern``; ``handler(envelope, body)``."""
-        self._subs.append(_Subscription(pattern, body_type, handler))
+    def subscribe(
+        self,
+        pattern: str,
+        body_type: type[BaseModel] | None,
+        handler: Handler,
+        *,
+        on_invalid: InvalidHandler | None = None,
+    ) -> None:
+        """Receive messages on run-relative ``pattern``: ``handler(envelope, body)`` with the body
+        validated as ``body_type`` (``None``: the raw mapping). A body that does not validate is
+        dropped and counted (:meth:`reject`), or, with ``on_invalid``, handed to
+        ``on_invalid(envelope, raw body, error)`` to answer."""
+        self._subs.append(_Subscription(pattern, body_type, handler, on_invalid))
         self._match_cache.clear()
 
     def every(
@@ -260,7 +277,10 @@ class Behaviour:
             try:
                 body = body_as(sub.body_type)
             except SchemaError as err:
-                self.reject(rel, f"{env.src}#{env.seq}: {err}")
+                if sub.on_invalid is None:
+                    self.reject(rel, f"{env.src}#{env.seq}: {err}")
+                else:  # answered, not dropped
+                    sub.on_invalid(env, body_as(None), err)
                 continue
             sub.handler(env, body)
 

@@ -22,12 +22,13 @@ from pathlib import Path
 from typing import Any
 
 from agents.wncsca.bounds import delay_bounds
-from agents.wncsca.config import WncscaConfig
+from agents.wncsca.config import ESTIMATES, WncscaConfig
 from agents.wncsca.coordinator import Coordinator, assign
 from agents.wncsca.decision import control_path_delays, decide
 from agents.wncsca.guarantee import judge_by_risk, path_laws
 from agents.wncsca.jitter import loop_margins
 from agents.wncsca.plots import fig10
+from bus_schemas.bodies import PathConfig
 from gateway.carrier import PathCarrier
 from runtime.direct import loop_model
 from scenario.views import agent_spec, carrier_spec
@@ -60,22 +61,23 @@ def parse_delays(text: str, loops: Any) -> dict[str, float]:
     return out
 
 
-def _network_paths(scenario: Any, name: str) -> dict[str, dict[str, Any]]:
+def _network_paths(scenario: Any, name: str) -> dict[str, PathConfig]:
     """The paths as network ``name`` would first propose them."""
     if scenario.is_wireless(name):
-        return dict(PathCarrier(carrier_spec(scenario, name)).configuration(0))
-    paths: dict[str, dict[str, Any]] = {}
+        configuration = PathCarrier(carrier_spec(scenario, name)).configuration(0)
+        return {p: PathConfig.model_validate(e) for p, e in configuration.items()}
+    paths: dict[str, PathConfig] = {}
     for loop, lp in scenario.loops.items():
         if lp.network == name:
             d = lp.tau_d + lp.tau_a
             est = {"timestamps": d, "ping": d, "hops": d}
-            paths[f"{loop}.sensor"] = {"hops": 0, "route": [], "estimates": est}
+            paths[f"{loop}.sensor"] = PathConfig(hops=0, estimates=est)
     return paths
 
 
-def _scenario_paths(scenario: Any) -> dict[str, dict[str, Any]]:
+def _scenario_paths(scenario: Any) -> dict[str, PathConfig]:
     """The paths as the scenario's networks would first propose them."""
-    paths: dict[str, dict[str, Any]] = {}
+    paths: dict[str, PathConfig] = {}
     for name in scenario.carriers():
         paths.update(_network_paths(scenario, name))
     return paths
@@ -124,10 +126,9 @@ def analyze(
         missing = [n for n in model.loops if n not in delays]
         if missing:
             raise ValueError(f"--delays: no delay for loop(s) {missing}")
-        paths = {
-            f"{n}.sensor": {"hops": 0, "route": [], "estimates": {config.estimate: d}}
-            for n, d in delays.items()
-        }
+        # the given delays as the configured estimate (``quantile``: a constant delay, as hops)
+        key = config.estimate if config.estimate in ESTIMATES else "hops"
+        paths = {f"{n}.sensor": PathConfig(hops=0, estimates={key: d}) for n, d in delays.items()}
     t1 = time.perf_counter()
     laws = path_laws(paths, model.loops)
     risk = None
@@ -204,9 +205,9 @@ def analyze(
     return summary
 
 
-def _hops(paths: Mapping[str, Any]) -> dict[str, float]:
+def _hops(paths: Mapping[str, PathConfig]) -> dict[str, float]:
     out: dict[str, float] = {}
     for path, entry in paths.items():
         loop = path.rpartition(".")[0]
-        out[loop] = out.get(loop, 0.0) + max(1, int(entry.get("hops", 1)))
+        out[loop] = out.get(loop, 0.0) + max(1, entry.hops)
     return out

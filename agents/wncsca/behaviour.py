@@ -5,9 +5,12 @@ with no alternative left), ``ops/mode`` and ``ops/setpoint/<loop>``; it answers 
 ``wncsca/decision`` (accept / reject with reasons and bounds / refuse a malformed request /
 keep the last accepted configuration) and assigns periods and loop states on ``wncsca/rates``,
 which the network nodes apply and the controllers follow; accepted set points go to the
-controllers on ``loop/<l>/sp`` at their time. Requests are read as raw mappings and validated by
-the core (:class:`~agents.wncsca.coordinator.Coordinator`), so a malformed one is refused with a
-reason on the bus, and nothing changes. The wall-clock time of each decision goes on
+controllers on ``loop/<l>/sp`` at their time. Requests arrive typed (:class:`~bus_schemas.Proposal`,
+:class:`~bus_schemas.ModeRequest`, :class:`~bus_schemas.Setpoint`); one that does not fit its
+schema reaches the ``on_invalid`` handler of its subscription and is refused on the bus naming
+every field that is wrong, and nothing changes; what the schema cannot know (an unknown loop or
+mode, a network that is no gateway) the core refuses
+(:class:`~agents.wncsca.coordinator.Coordinator`). The wall-clock time of each decision goes on
 ``wncsca/timing`` (a measurement: left out of the history digest).
 """
 
@@ -17,10 +20,11 @@ import time
 from typing import Any
 
 from agents.wncsca.coordinator import Coordinator, Negotiation
-from bus_schemas import Decision, Rates, Sample, Setpoint, Timing, keys
+from bus_schemas import Decision, ModeRequest, Proposal, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
 from bus_schemas.envelope import RawEnvelope
-from core.behaviour import Behaviour
+from bus_schemas.errors import SchemaError
+from core.behaviour import Behaviour, Handler, InvalidHandler
 from core.time import to_ticks
 
 __all__ = ["WncscaBehaviour"]
@@ -40,11 +44,18 @@ class WncscaBehaviour(Behaviour):
             {n: round(b.tau_d_max, 4) for n, b in bounds.items()},
             time.perf_counter() - t0,
         )
-        self.subscribe(keys.net_proposal(), None, self._on_proposal)
+        self.subscribe(
+            keys.net_proposal(), Proposal, self._on_proposal, on_invalid=self._on_bad_proposal
+        )
         self.subscribe(keys.net_applied(), NetApplied, self._on_applied)
-        self.subscribe(keys.ops_mode(), None, self._on_mode)
+        self.subscribe(keys.ops_mode(), ModeRequest, self._on_mode, on_invalid=self._on_bad_mode)
         for loop in self.core.loops:
-            self.subscribe(keys.setpoint(loop), None, self._on_setpoint(loop))
+            self.subscribe(
+                keys.setpoint(loop),
+                Setpoint,
+                self._on_setpoint(loop),
+                on_invalid=self._on_bad_setpoint(loop),
+            )
             if loop in self.core.config.alarm:
                 self.subscribe(keys.meas(loop), Sample, self._on_meas(loop))
         self._initial_links = self.core.govern_links()  # wired links: judged before the run
@@ -67,13 +78,21 @@ class WncscaBehaviour(Behaviour):
             )
         self._publish_rates()
 
-    def _on_proposal(self, env: RawEnvelope, body: Any) -> None:
+    def _on_proposal(self, env: RawEnvelope, proposal: Proposal) -> None:
         t0 = time.perf_counter()
-        neg = self.core.on_proposal(env.src, body)
-        paths = body.get("paths") if isinstance(body, dict) else None
-        self._publish_decision(neg, sorted(paths, key=str) if isinstance(paths, dict) else [])
+        neg = self.core.on_proposal(env.src, proposal)
+        self._publish_decision(neg, sorted(proposal.paths))
         if neg.decision.verdict == "accept":
             self._publish_rates(neg)
+        self._publish_timing(neg, t0)
+
+    def _on_bad_proposal(self, env: RawEnvelope, raw: Any, err: SchemaError) -> None:
+        t0 = time.perf_counter()
+        neg = self.core.on_malformed_proposal(env.src, raw, err.problems)
+        self._publish_decision(neg, [])
+        self._publish_timing(neg, t0)
+
+    def _publish_timing(self, neg: Negotiation, t0: float) -> None:
         self.publish(
             keys.wncsca_timing(),
             Timing(proposal=neg.decision.proposal, decision_s=time.perf_counter() - t0),
@@ -101,18 +120,34 @@ class WncscaBehaviour(Behaviour):
                 ),
             )
 
-    def _on_mode(self, env: RawEnvelope, body: Any) -> None:
-        d = self.core.on_mode(body)
+    def _on_mode(self, env: RawEnvelope, request: ModeRequest) -> None:
+        d = self.core.on_mode(request)
         self.publish(
             keys.wncsca_decision(), Decision(subject="mode", verdict=d.verdict, reasons=d.reasons)
         )
         if d.verdict == "accept":
             self._publish_rates()
 
-    def _on_setpoint(self, loop: str) -> Any:
-        def handle(env: RawEnvelope, body: Any) -> None:
+    def _on_bad_mode(self, env: RawEnvelope, raw: Any, err: SchemaError) -> None:
+        d = self.core.on_malformed_mode(err.problems)
+        self.publish(
+            keys.wncsca_decision(), Decision(subject="mode", verdict=d.verdict, reasons=d.reasons)
+        )
+
+    def _on_bad_setpoint(self, loop: str) -> InvalidHandler:
+        def handle(env: RawEnvelope, raw: Any, err: SchemaError) -> None:
+            d = self.core.on_malformed_setpoint(loop, err.problems)
+            self.publish(
+                keys.wncsca_decision(),
+                Decision(subject="setpoint", verdict=d.verdict, reasons=d.reasons),
+            )
+
+        return handle
+
+    def _on_setpoint(self, loop: str) -> Handler:
+        def handle(env: RawEnvelope, request: Setpoint) -> None:
             mode = self.core.mode
-            d, value, when = self.core.on_setpoint(loop, body, self.now)
+            d, value, when = self.core.on_setpoint(loop, request, self.now)
             self.publish(
                 keys.wncsca_decision(),
                 Decision(subject="setpoint", verdict=d.verdict, reasons=d.reasons),
@@ -144,7 +179,7 @@ class WncscaBehaviour(Behaviour):
         self.core.setpoints[loop] = value
         self.publish(keys.loop_setpoint(loop), Setpoint(value=value))
 
-    def _on_meas(self, loop: str) -> Any:
+    def _on_meas(self, loop: str) -> Handler:
         def handle(env: RawEnvelope, sample: Sample) -> None:
             d = self.core.on_sample(loop, sample.value, self.now)
             if d is None:

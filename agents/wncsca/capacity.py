@@ -12,29 +12,18 @@ gateway checks again with the real phases when the rates arrive (``rates_refused
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Iterable, Mapping
 
 from bus_schemas import TschCapacity
+from bus_schemas.bodies import PathConfig
 from core.time import to_ticks
 from gateway.tsch.schedule import Cell, Schedule, schedule_for
 
-__all__ = ["Manager", "read_capacity", "describe", "path_ticks"]
-
-
-def read_capacity(raw: Any) -> TschCapacity | None:
-    """A proposal's ``tsch`` entry, validated (``None`` when absent: not a TSCH gateway).
-
-    Raises
-    ------
-    pydantic.ValidationError
-        A malformed entry (the caller refuses the proposal).
-    """
-    return None if raw is None else TschCapacity.model_validate(raw)
+__all__ = ["Manager", "describe", "path_ticks"]
 
 
 def path_ticks(
-    paths: Mapping[str, Any], periods: Mapping[str, float], link_periods: Mapping[str, float]
+    paths: Iterable[str], periods: Mapping[str, float], link_periods: Mapping[str, float]
 ) -> dict[str, int]:
     """Path name (``<loop>.<direction>``, ``<link>.link``) -> its packets' period in ticks: a
     loop's sensor and actuator paths at the loop's period, a link at its own (time units);
@@ -51,12 +40,12 @@ def path_ticks(
 class Manager:
     """A TSCH gateway's manager, as the agent asks it: its capacity and the proposal's routes."""
 
-    def __init__(self, capacity: TschCapacity, paths: Mapping[str, Any]) -> None:
+    def __init__(self, capacity: TschCapacity, paths: Mapping[str, PathConfig]) -> None:
         self.capacity = capacity
-        self.routes: dict[str, tuple[str, ...] | None] = {}
-        for name, entry in paths.items():
-            nodes = entry.get("route") if isinstance(entry, Mapping) else None
-            self.routes[str(name)] = tuple(nodes) if nodes and len(nodes) >= 2 else None
+        self.routes: dict[str, tuple[str, ...] | None] = {
+            name: tuple(entry.route) if len(entry.route) >= 2 else None
+            for name, entry in paths.items()
+        }
 
     def schedule(self, periods: Mapping[str, float], link_periods: Mapping[str, float]) -> Schedule:
         """The schedule for loops sampled at ``periods`` and links sent at ``link_periods``

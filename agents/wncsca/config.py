@@ -8,9 +8,11 @@ when a scenario has no agent node.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from bus_schemas.bodies import EstimateName
 
 __all__ = [
     "ESTIMATES",
@@ -24,7 +26,7 @@ __all__ = [
 
 _STRICT = ConfigDict(frozen=True, extra="forbid")
 
-ESTIMATES = ("timestamps", "ping", "hops")
+ESTIMATES: tuple[str, ...] = get_args(EstimateName)
 """The paper's three path-delay estimates (III.E step 1), as the gateway's proposals carry them."""
 
 MODES = (

@@ -21,19 +21,26 @@ A set-point request first restores the control periods and closes the loops (mod
 method the step is judged first (:func:`agents.wncsca.steps.judge_step`): applied at the
 control periods, applied with tightened periods for its transient (relaxed after the test's
 length: :meth:`Coordinator.relax`), or refused with the predicted overshoot.
+
+Requests arrive typed (:class:`~bus_schemas.Proposal`, :class:`~bus_schemas.ModeRequest`,
+:class:`~bus_schemas.Setpoint`, validated by the behaviour's subscriptions); a body that is none
+of them reaches ``on_malformed_*`` with the schema's problems and is refused naming each field.
+Units: the agent reasons in time units (periods, delays, set-point times as floats); whole
+ticks appear only at its edges: the ``Rates`` body it publishes, the TSCH manager's cells
+(:mod:`agents.wncsca.capacity`) and the trial simulators, which run on the engines' tick grid.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, cast
+from typing import Any
 
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
-from agents.wncsca.capacity import Manager, describe, path_ticks, read_capacity
+from agents.wncsca.capacity import Manager, describe, path_ticks
 from agents.wncsca.chance import LoopLaw
 from agents.wncsca.config import MODES, LinksConfig
 from agents.wncsca.decision import (
@@ -50,6 +57,8 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.spec import AgentSpec
 from agents.wncsca.steps import judge_step, test_length
+from bus_schemas import ModeRequest, Proposal, Setpoint, TschCapacity
+from bus_schemas.bodies import PathConfig
 from core.time import to_ticks, to_units
 from gateway.carrier import PathCarrier
 from gateway.energy import projected_lifetime
@@ -95,13 +104,13 @@ class _Read:
     """A proposal as read (:meth:`Coordinator._read_proposal`)."""
 
     pid: int
-    paths: Any
-    """The loops' paths (as proposed: validated as they are judged)."""
-    link_paths: dict[str, Any]
+    paths: dict[str, PathConfig]
+    """The loops' paths."""
+    link_paths: dict[str, PathConfig]
     """The links' paths (``<link>.link``)."""
-    all_paths: Any
-    """Every path, as proposed (a TSCH manager schedules them all)."""
-    capacity: Any
+    all_paths: Mapping[str, PathConfig]
+    """Every path (a TSCH manager schedules them all)."""
+    capacity: TschCapacity | None
     """The TSCH manager's capacity (``None``: not a TSCH gateway)."""
     others: dict[str, float]
     """The delays of the loops other networks carry (0 where none is accepted yet)."""
@@ -195,13 +204,12 @@ class Coordinator:
         return self.config.links
 
     # -- proposals -------------------------------------------------------------------------
-    def on_proposal(self, network: str, body: Any) -> Negotiation:
-        """Judge a proposal (a raw mapping from ``net/proposal``) from ``network``: read it,
-        judge the control paths and the links, check the periods against a TSCH manager's
-        capacity, and commit what was accepted (each step may end the negotiation: a refusal,
-        a rejection)."""
+    def on_proposal(self, network: str, proposal: Proposal) -> Negotiation:
+        """Judge ``proposal`` from ``network``: read it, judge the control paths and the links,
+        check the periods against a TSCH manager's capacity, and commit what was accepted (each
+        step may end the negotiation: a refusal, a rejection)."""
         try:
-            read = self._read_proposal(network, body)
+            read = self._read_proposal(network, proposal)
             decision, risk = self._judge_control(network, read)
             decision, links, link_delays = self._judge_proposed_links(network, read, decision)
             delays = {**self.delays, **{n: decision.delays[n] for n in self.carried[network]}}
@@ -227,34 +235,34 @@ class Coordinator:
         energy = self.energy(network, read.paths)
         return Negotiation(decision, network, result, energy, links)
 
-    def _read_proposal(self, network: str, body: Any) -> _Read:
-        """The proposal's id, its loops' and its links' paths and its TSCH capacity, and the
-        delays of the loops other networks carry; refused (:class:`_Ended`) if malformed."""
-        raw_id = body.get("id") if isinstance(body, Mapping) else None
-        valid_id = isinstance(raw_id, int) and not isinstance(raw_id, bool) and raw_id >= 0
-        if network not in self.carried or not self.spec.is_wireless(network):
-            pid_ = raw_id if valid_id else None
-            raise _Ended(self._refused(network, pid_, f"{network!r} is no gateway"))
-        if not isinstance(body, Mapping) or not valid_id:
-            raise _Ended(self._refused(network, None, "id: missing or not an integer >= 0"))
-        pid = cast(int, raw_id)  # valid_id: an int >= 0 (mypy does not narrow through it)
+    def on_malformed_proposal(self, network: str, raw: Any, problems: Sequence[str]) -> Negotiation:
+        """A ``net/proposal`` body that is no :class:`~bus_schemas.Proposal`: refused naming every
+        field that is wrong (``problems``, :attr:`bus_schemas.errors.SchemaError.problems`), with
+        its id where the body has a valid one."""
+        raw_id = raw.get("id") if isinstance(raw, Mapping) else None
+        valid = isinstance(raw_id, int) and not isinstance(raw_id, bool) and raw_id >= 0
+        pid = raw_id if valid else None
+        if not self._is_gateway(network):
+            return self._refused(network, pid, f"{network!r} is no gateway")
+        return self._refused(network, pid, "; ".join(problems))
+
+    def _is_gateway(self, network: str) -> bool:
+        return network in self.carried and self.spec.is_wireless(network)
+
+    def _read_proposal(self, network: str, proposal: Proposal) -> _Read:
+        """The proposal's loops' and links' paths, and the delays of the loops other networks
+        carry; refused (:class:`_Ended`) if ``network`` is no gateway."""
+        if not self._is_gateway(network):
+            raise _Ended(self._refused(network, proposal.id, f"{network!r} is no gateway"))
         others = {n: d for n, d in self.delays.items() if n not in self.carried[network]}
         missing = [n for n in self.loops if n not in self.carried[network] and n not in others]
         for n in missing:  # a loop of another gateway with no accepted configuration yet
             others[n] = 0.0
-        paths = body.get("paths")
-        try:
-            capacity = read_capacity(body.get("tsch"))
-        except ValueError as err:
-            raise _Ended(self._refused(network, pid, f"tsch: {err}")) from err
-        link_paths: dict[str, Any] = {}
-        if isinstance(paths, Mapping):  # links' paths ("<link>.link") are judged apart
-            link_paths = {
-                p: e for p, e in paths.items() if str(p).rpartition(".")[0] in self.spec.links
-            }
-            paths = {p: e for p, e in paths.items() if p not in link_paths}
-        all_paths = body.get("paths")
-        return _Read(pid, paths, link_paths, all_paths, capacity, others)
+        link_paths = {  # links' paths ("<link>.link") are judged apart
+            p: e for p, e in proposal.paths.items() if p.rpartition(".")[0] in self.spec.links
+        }
+        paths = {p: e for p, e in proposal.paths.items() if p not in link_paths}
+        return _Read(proposal.id, paths, link_paths, proposal.paths, proposal.tsch, others)
 
     def _judge_control(self, network: str, read: _Read) -> tuple[Decision, Assignment | None]:
         """III.E step 2 on the control paths: by the bounds (the paper's and the fast method),
@@ -297,9 +305,7 @@ class Coordinator:
 
     def _manager(self, read: _Read) -> Manager | None:
         """The TSCH manager the proposal describes (``None``: not a TSCH gateway)."""
-        if read.capacity is None or not isinstance(read.all_paths, Mapping):
-            return None
-        return Manager(read.capacity, read.all_paths)
+        return None if read.capacity is None else Manager(read.capacity, read.all_paths)
 
     def _periods(
         self,
@@ -334,7 +340,11 @@ class Coordinator:
         return result
 
     def _judge_by_risk(
-        self, network: str, pid: int, paths: Any, others: Mapping[str, float]
+        self,
+        network: str,
+        pid: int,
+        paths: Mapping[str, PathConfig],
+        others: Mapping[str, float],
     ) -> tuple[Decision, Assignment | None]:
         """III.E steps 2-3 on the risk (the chance method): the proposal is accepted when
         periods exist that keep every loop's ``P(overshoot <= limit) >= confidence`` under its
@@ -363,7 +373,7 @@ class Coordinator:
             self.laws.update(laws)
         return decision, result
 
-    def _link_delays(self, network: str, link_paths: Mapping[str, Any]) -> dict[str, float]:
+    def _link_delays(self, network: str, link_paths: Mapping[str, PathConfig]) -> dict[str, float]:
         """Delay of every link of ``network`` from its path in a proposal (``inf``: no route)."""
         out: dict[str, float] = {}
         for name, lk in sorted(self.spec.links.items()):
@@ -405,9 +415,20 @@ class Coordinator:
         return Negotiation(Decision(pid, "refuse", (f"proposal refused: {reason}",)), network)
 
     # -- modes and set points --------------------------------------------------------------
-    def on_mode(self, body: Any) -> Decision:
-        """Change the operating mode (raw ``ops/mode`` body); refused if unknown."""
-        mode = body.get("mode") if isinstance(body, Mapping) else None
+    def on_malformed_mode(self, problems: Sequence[str]) -> Decision:
+        """An ``ops/mode`` body that is no :class:`~bus_schemas.ModeRequest`: refused, naming
+        every field that is wrong."""
+        return Decision(None, "refuse", (f"mode refused: {'; '.join(problems)}",))
+
+    def on_malformed_setpoint(self, loop: str, problems: Sequence[str]) -> Decision:
+        """An ``ops/setpoint/<loop>`` body that is no :class:`~bus_schemas.Setpoint`: refused,
+        naming every field that is wrong as ``<loop>.<field>``."""
+        named = [f"{loop}:{p[5:]}" if p.startswith("body:") else f"{loop}.{p}" for p in problems]
+        return Decision(None, "refuse", (f"set point refused: {'; '.join(named)}",))
+
+    def on_mode(self, request: ModeRequest) -> Decision:
+        """Change the operating mode; refused if unknown."""
+        mode = request.mode
         if mode not in MODES:
             return Decision(
                 None, "refuse", (f"mode refused: unknown mode {mode!r} (modes: {MODES})",)
@@ -430,40 +451,14 @@ class Coordinator:
                 return f"{network}: {describe(mine, schedule)}"
         return None
 
-    def on_setpoint(self, loop: str, body: Any, now: int) -> tuple[Decision, float | None, int]:
-        """A set-point request (raw ``ops/setpoint/<loop>`` body) at ``now`` (ticks): returns the
-        verdict, the value to pass on (``None`` if refused) and when (ticks). Accepting it puts
-        the loops back under control (mode ``setpoint_change``) before the change applies."""
-        if not isinstance(body, Mapping):
-            return Decision(None, "refuse", ("set point refused: not a mapping",)), None, now
-        value, t_apply = body.get("value"), body.get("t_apply")
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
-            return (
-                Decision(
-                    None,
-                    "refuse",
-                    (f"set point refused: {loop}.value {value!r} is not a finite number",),
-                ),
-                None,
-                now,
-            )
-        if t_apply is not None and (
-            isinstance(t_apply, bool) or not isinstance(t_apply, int) or t_apply < 0
-        ):
-            return (
-                Decision(
-                    None,
-                    "refuse",
-                    (f"set point refused: {loop}.t_apply {t_apply!r} is not a time in ticks",),
-                ),
-                None,
-                now,
-            )
-        when = now if t_apply is None else max(int(t_apply), now)
+    def on_setpoint(
+        self, loop: str, request: Setpoint, now: int
+    ) -> tuple[Decision, float | None, int]:
+        """A set-point request for ``loop`` at ``now`` (ticks): returns the verdict, the value to
+        pass on (``None`` if refused) and when (ticks). Accepting it puts the loops back under
+        control (mode ``setpoint_change``) before the change applies."""
+        value, t_apply = request.value, request.t_apply
+        when = now if t_apply is None else max(t_apply, now)
         judged: tuple[str, ...] = ()
         if self.config.method == "chance" and loop in self.loops:
             step = judge_step(
@@ -541,7 +536,7 @@ class Coordinator:
         return {"mode": self.mode, "periods": periods, "closed": closed}
 
     # -- energy ----------------------------------------------------------------------------
-    def energy(self, network: str, paths: Any) -> dict[str, Any] | None:
+    def energy(self, network: str, paths: Mapping[str, PathConfig]) -> dict[str, Any] | None:
         """Projected network lifetime (the first battery node to run out) under the control
         periods against the benchmark periods, over the proposal's routes."""
         cfg = self.spec.carriers[network].gateway
@@ -551,12 +546,11 @@ class Coordinator:
         routes = {}
         try:
             for path, entry in paths.items():
-                nodes = entry.get("route") or []
-                if len(nodes) >= 2:
+                if len(entry.route) >= 2:
                     routes[path] = Route(
-                        tuple(topology.hop(a, b) for a, b in itertools.pairwise(nodes))
+                        tuple(topology.hop(a, b) for a, b in itertools.pairwise(entry.route))
                     )
-        except (ValueError, AttributeError, TypeError):
+        except ValueError:
             return None  # a route over links the scenario does not know (e.g. an added relay)
 
         def lifetime(periods: Mapping[str, float]) -> float:
@@ -577,16 +571,13 @@ class Coordinator:
             "ratio": assigned / bench if finite else None,
         }
 
-    def _tsch_energy(self, network: str, paths: Any) -> dict[str, Any] | None:
+    def _tsch_energy(self, network: str, paths: Mapping[str, PathConfig]) -> dict[str, Any] | None:
         """:meth:`energy` over a TSCH network: the first battery to run out under its manager's
         schedule for the proposal's routes (:meth:`gateway.tsch.network.TschNetwork.lifetimes_h`),
         the loops' sensor and actuator paths at their periods."""
         carrier = PathCarrier(self.spec.carriers[network])
         assert carrier.tsch is not None
-        try:
-            routes = {str(p): (tuple(e.get("route") or ()) or None) for p, e in paths.items()}
-        except AttributeError:
-            return None
+        routes = {p: (tuple(e.route) or None) for p, e in paths.items()}
 
         def lifetime(periods: Mapping[str, float]) -> float:
             assert carrier.tsch is not None
@@ -614,13 +605,11 @@ def _with_links(decision: Decision, links: list[LinkVerdict]) -> Decision:
     )
 
 
-def _weights(paths: Any, loops: tuple[str, ...]) -> dict[str, float]:
+def _weights(paths: Mapping[str, PathConfig], loops: tuple[str, ...]) -> dict[str, float]:
     """Energy weight of one sample of each loop: the hops of its paths (at least 1)."""
     out = {n: 1.0 for n in loops}
-    if isinstance(paths, Mapping):
-        for path, entry in paths.items():
-            loop = str(path).rpartition(".")[0]
-            hops = entry.get("hops") if isinstance(entry, Mapping) else None
-            if loop in out and isinstance(hops, int) and hops > 0:
-                out[loop] = float(hops) if out[loop] == 1.0 else out[loop] + hops
+    for path, entry in paths.items():
+        loop = path.rpartition(".")[0]
+        if loop in out and entry.hops > 0:
+            out[loop] = float(entry.hops) if out[loop] == 1.0 else out[loop] + entry.hops
     return out

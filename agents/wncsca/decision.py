@@ -6,22 +6,22 @@ Step 2: accept the configuration (conditionally: periods are negotiated next) wh
 delay is below its bound at the benchmark periods; otherwise reject it, naming each offending
 loop, its delay and its bound. A proposal that does not make sense (a path of an unknown loop, a
 negative or missing delay, a malformed entry) is *refused*: neither accepted nor rejected, so
-nothing changes.
+nothing changes. The shape of a proposal (types, signs, the estimates' names) is its schema's
+(:class:`bus_schemas.Proposal`, checked before the agent sees it); what the schema cannot know
+(the loops, the directions) is checked here.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from agents.wncsca.bounds import DelayBound
 from agents.wncsca.config import ESTIMATES
-from bus_schemas import DelayDistribution
+from bus_schemas.bodies import PathConfig
 
 __all__ = [
     "Decision",
@@ -29,7 +29,6 @@ __all__ = [
     "control_path_delays",
     "decide",
     "path_delay",
-    "read_distribution",
 ]
 
 _DIRECTIONS = ("sensor", "actuator")
@@ -63,88 +62,51 @@ class Decision:
         }
 
 
-def read_distribution(path: str, raw: Any) -> DelayDistribution:
-    """A path entry's ``distribution``, validated.
-
-    Raises
-    ------
-    ProposalError
-        Naming the path and the field (``paths.<path>.distribution.<field>: ...``).
-    """
-    try:
-        return DelayDistribution.model_validate(raw)
-    except ValidationError as err:
-        first = err.errors()[0]
-        where = "".join(f".{p}" for p in first["loc"])
-        raise ProposalError(f"paths.{path}.distribution{where}: {first['msg']}") from None
-
-
 def path_delay(
-    path: str, entry: Any, preferred: str, quantile: float = 0.95
+    path: str, entry: PathConfig, preferred: str, quantile: float = 0.95
 ) -> tuple[float, str] | tuple[None, None]:
     """``(delay, estimate used)`` of one path entry; ``(None, None)`` when the path is down.
 
     ``preferred="quantile"``: the ``quantile`` of the entry's delay ``distribution`` (a
     constant delay the path's delivered packets exceed with probability ``1 - quantile``; with
     a sensor and an actuator path the sum of their quantiles, an upper bound of the quantile of
-    the sum); without a distribution the paper's estimates are used, in their order."""
-    if not isinstance(entry, Mapping):
-        raise ProposalError(f"paths.{path}: expected a mapping, got {type(entry).__name__}")
-    hops = entry.get("hops")
-    if isinstance(hops, bool) or not isinstance(hops, int):
-        raise ProposalError(f"paths.{path}.hops: missing or not an integer ({hops!r})")
-    route = entry.get("route", [])
-    if not isinstance(route, list) or not all(isinstance(n, str) for n in route):
-        raise ProposalError(f"paths.{path}.route: not a list of node names ({route!r})")
-    estimates = entry.get("estimates")
-    if not isinstance(estimates, Mapping):
-        raise ProposalError(f"paths.{path}.estimates: missing or not a mapping")
-    unknown = [e for e in estimates if e not in ESTIMATES]
-    if unknown:
-        raise ProposalError(f"paths.{path}.estimates: unknown estimate(s) {unknown!r}")
-    for name, value in estimates.items():
-        if value is None:
-            continue
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ProposalError(f"paths.{path}.estimates.{name}: not a number ({value!r})")
-        try:
-            value = float(value)
-        except OverflowError:
-            raise ProposalError(f"paths.{path}.estimates.{name}: out of range") from None
-        if not math.isfinite(value) or value < 0:
-            raise ProposalError(f"paths.{path}.estimates.{name}: a delay must be >= 0, got {value}")
-    if hops < 0:
+    the sum); without a distribution the paper's estimates are used, in their order.
+
+    Raises
+    ------
+    ProposalError
+        A routed path without any estimate.
+    """
+    if entry.hops < 0:
         return None, None
-    if preferred == "quantile" and entry.get("distribution") is not None:
-        dist = read_distribution(path, entry["distribution"])
+    if preferred == "quantile" and entry.distribution is not None:
+        dist = entry.distribution
         return float(np.interp(quantile, dist.probabilities, dist.delays)), "quantile"
-    order = [preferred, *(e for e in ESTIMATES if e != preferred)]
-    for name in order:
-        value = estimates.get(name)
+    given: dict[str, float | None] = {str(k): v for k, v in entry.estimates.items()}
+    for name in [preferred, *(e for e in ESTIMATES if e != preferred)]:
+        value = given.get(name)
         if value is not None:
             return float(value), name
-    raise ProposalError(f"paths.{path}.estimates: a routed path ({hops} hops) has no estimate")
+    raise ProposalError(
+        f"paths.{path}.estimates: a routed path ({entry.hops} hops) has no estimate"
+    )
 
 
 def control_path_delays(
-    paths: Any, loops: tuple[str, ...], preferred: str, quantile: float = 0.95
+    paths: Mapping[str, PathConfig], loops: tuple[str, ...], preferred: str, quantile: float = 0.95
 ) -> tuple[dict[str, float | None], dict[str, str]]:
     """Each loop's control-path delay (``None``: a path of the loop is down) and the estimate used.
 
     Raises
     ------
     ProposalError
-        For a path of an unknown loop or direction, a malformed entry, a negative delay, or a
-        loop with no sensor path.
+        For a path of an unknown loop or direction, a routed path without estimate, or a loop
+        with no sensor path (what the schema cannot know).
     """
-    if not isinstance(paths, Mapping):
-        raise ProposalError("paths: missing or not a mapping")
     delays: dict[str, float | None] = {}
     used: dict[str, str] = {}
-    if not all(isinstance(p, str) for p in paths):
-        raise ProposalError(f"paths: every key must be a path name, got {list(paths)!r}")
     for path in sorted(paths):
-        loop, _, direction = str(path).rpartition(".")
+        loop, _, direction = path.rpartition(".")
         if loop not in loops:
             raise ProposalError(f"paths.{path}: unknown loop {loop!r} (loops: {list(loops)})")
         if direction not in _DIRECTIONS:
@@ -164,14 +126,16 @@ def control_path_delays(
 
 def decide(
     proposal: int | None,
-    paths: Any,
+    paths: Mapping[str, PathConfig],
     bounds: Mapping[str, DelayBound],
     preferred: str,
     *,
     wired: Mapping[str, float] | None = None,
     quantile: float = 0.95,
 ) -> Decision:
-    """Accept or reject a proposal (III.E step 2); refuse it when it is malformed.
+    """Accept or reject a proposal (III.E step 2); refuse it when it makes no sense for these
+    loops (a path of an unknown loop, a loop without a sensor path, a routed path without an
+    estimate: :func:`control_path_delays`).
 
     ``wired`` gives the constant delay of loops not carried by the proposing network (they
     need no path in the proposal).

@@ -27,10 +27,11 @@ import numpy as np
 from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import largest_delay
 from agents.wncsca.chance import ChanceModel, LoopLaw
-from agents.wncsca.decision import Decision, ProposalError, read_distribution
+from agents.wncsca.decision import Decision
 from agents.wncsca.jitter import delay_variation, loop_margins
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
+from bus_schemas.bodies import PathConfig
 
 __all__ = [
     "ROUNDS",
@@ -50,25 +51,16 @@ BOUND_RESOLUTION = 0.005
 _SHAPE_DRAWS = 20000
 
 
-def path_laws(paths: Any, loops: tuple[str, ...]) -> dict[str, LoopLaw]:
+def path_laws(paths: Mapping[str, PathConfig], loops: tuple[str, ...]) -> dict[str, LoopLaw]:
     """Each loop's delay law from the ``distribution`` of its paths (a loop whose paths carry
-    none gets a constant delay without loss: the gateway predicts none for a down path).
-
-    Raises
-    ------
-    ProposalError
-        A malformed distribution, naming the path and the field.
-    """
-    if not isinstance(paths, Mapping):
-        raise ProposalError("paths: missing or not a mapping")
+    none gets a constant delay without loss: the gateway predicts none for a down path)."""
     out: dict[str, LoopLaw] = {}
     for loop in loops:
         dists = []
         for direction in ("sensor", "actuator"):
             entry = paths.get(f"{loop}.{direction}")
-            raw = entry.get("distribution") if isinstance(entry, Mapping) else None
-            if raw is not None:
-                dists.append(read_distribution(f"{loop}.{direction}", raw))
+            if entry is not None and entry.distribution is not None:
+                dists.append(entry.distribution)
         if not dists:
             out[loop] = LoopLaw()
         elif len(dists) == 1:

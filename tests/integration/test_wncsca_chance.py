@@ -6,12 +6,14 @@ from __future__ import annotations
 import pytest
 
 from agents.wncsca.guarantee import path_laws
+from bus_schemas import Setpoint
 from gateway.carrier import PathCarrier
 from runtime.analysis import analyze
 from runtime.direct import coordinator
 from runtime.launcher import launch
 from scenario import load_scenario
 from scenario.views import carrier_spec
+from tests.agent_requests import typed_paths
 from tests.conftest import SCENARIOS, write_variant
 from tests.integration.test_engines_agree import _without_wall_clock
 
@@ -120,13 +122,13 @@ def test_a_step_too_fast_for_the_control_periods_tightens_them_for_its_transient
     step is applied with the tightened period, relaxed after the test's length (8 pu)."""
     scenario = load_scenario(JITTER)
     co = coordinator(scenario)
-    paths = PathCarrier(carrier_spec(scenario, "network")).configuration(0)
+    paths = typed_paths(PathCarrier(carrier_spec(scenario, "network")).configuration(0))
     co.laws = path_laws(paths, ("level", "temperature"))
     co.delays = {"level": 0.17, "temperature": 0.10}
     slow = {"level": 0.175, "temperature": 0.2}
     co.control_periods = dict(slow)
     co.setpoints = {"level": 0.75, "temperature": 52.0}
-    decision, value, when = co.on_setpoint("temperature", {"value": 56.0}, 1_000_000)
+    decision, value, when = co.on_setpoint("temperature", Setpoint(value=56.0), 1_000_000)
     assert decision.verdict == "accept" and value == 56.0 and when == 1_000_000
     assert "periods tightened to level 0.175, temperature 0.1" in decision.reasons[-1]
     assert co.control_periods == {"level": 0.175, "temperature": 0.1}

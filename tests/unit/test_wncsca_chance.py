@@ -18,15 +18,16 @@ from agents.wncsca.chance import (
     risk_index,
 )
 from agents.wncsca.config import WncscaConfig
-from agents.wncsca.decision import ProposalError, control_path_delays
-from agents.wncsca.guarantee import path_laws
+from agents.wncsca.decision import control_path_delays
 from agents.wncsca.jitter import FREQUENCIES, delay_variation, jitter_margin
 from bus_schemas import DelayDistribution
+from bus_schemas.errors import SchemaError
 from gateway import distribution
 from gateway.delay_models import ConstantDelay, ExponentialDelay
 from gateway.paths import Hop, Route
 from runtime.direct import loop_model
 from scenario import load_scenario
+from tests.agent_requests import typed_paths
 from tests.conftest import SCENARIOS
 
 
@@ -109,8 +110,9 @@ def test_a_proposal_with_a_bad_distribution_is_refused_naming_path_and_field():
             "count": 10,
         },
     }
-    with pytest.raises(ProposalError, match=r"paths\.level\.sensor\.distribution"):
-        path_laws({"level.sensor": entry}, ("level",))
+    with pytest.raises(SchemaError) as err:  # the agent node refuses it with these problems
+        typed_paths({"level.sensor": entry})
+    assert err.value.problems[0].startswith("paths.level.sensor.distribution"), err.value.problems
 
 
 @pytest.mark.parametrize("confidence", [0.0, 1.0, 1.5, -0.1])
@@ -193,11 +195,15 @@ def test_the_quantile_estimate_is_the_distributions_quantile_for_the_paper_metho
             "count": 100,
         },
     }
-    delays, used = control_path_delays({"level.sensor": entry}, ("level",), "quantile", 0.95)
+    delays, used = control_path_delays(
+        typed_paths({"level.sensor": entry}), ("level",), "quantile", 0.95
+    )
     assert used == {"level.sensor": "quantile"}
     assert delays["level"] == pytest.approx(0.2 + 0.5 * 0.2)  # halfway from q0.9 to q1
     no_dist = {k: v for k, v in entry.items() if k != "distribution"}
-    delays, used = control_path_delays({"level.sensor": no_dist}, ("level",), "quantile", 0.95)
+    delays, used = control_path_delays(
+        typed_paths({"level.sensor": no_dist}), ("level",), "quantile", 0.95
+    )
     assert used == {"level.sensor": "ping"} and delays["level"] == pytest.approx(0.12)
     with pytest.raises(ValidationError, match="estimate: quantile"):
         WncscaConfig(method="chance", estimate="quantile")

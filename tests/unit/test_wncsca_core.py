@@ -16,9 +16,11 @@ import pytest
 from agents.wncsca.bounds import DelayBound, clear_cache, delay_bounds
 from agents.wncsca.decision import ProposalError, control_path_delays, decide
 from agents.wncsca.paper import successive_approximation
+from bus_schemas.errors import SchemaError
 from core.time import to_ticks
 from runtime.direct import coordinator, loop_model
 from scenario import load_scenario
+from tests.agent_requests import ask_mode, ask_setpoint, offer, proposal_body, typed_paths
 from tests.conftest import SCENARIOS
 
 WNCS = SCENARIOS / "jcstr_wncs.yaml"
@@ -52,7 +54,7 @@ def good_paths(level: float = 0.2, temperature: float = 0.1) -> dict[str, Any]:
 
 
 def test_accept_when_every_delay_is_below_its_bound():
-    d = decide(7, good_paths(0.2, 0.1), BOUNDS, "hops")
+    d = decide(7, typed_paths(good_paths(0.2, 0.1)), BOUNDS, "hops")
     assert d.verdict == "accept"
     assert d.proposal == 7
     assert d.delays == pytest.approx({"level": 0.2, "temperature": 0.1})
@@ -63,13 +65,13 @@ def test_accept_when_every_delay_is_below_its_bound():
 
 def test_a_delay_equal_to_its_bound_is_rejected():
     # III.E step 2: accept if the delays are *less than* tau_d-max
-    d = decide(1, good_paths(0.25, 0.1), BOUNDS, "hops")
+    d = decide(1, typed_paths(good_paths(0.25, 0.1)), BOUNDS, "hops")
     assert d.verdict == "reject"
     assert d.offending == ("level",)
 
 
 def test_reject_names_each_offending_loop_with_its_delay_and_bound():
-    d = decide(3, good_paths(0.3, 0.2), BOUNDS, "hops")
+    d = decide(3, typed_paths(good_paths(0.3, 0.2)), BOUNDS, "hops")
     assert d.verdict == "reject"
     assert d.offending == ("level", "temperature")
     level = [r for r in d.reasons if r.startswith("level")]
@@ -78,7 +80,7 @@ def test_reject_names_each_offending_loop_with_its_delay_and_bound():
     assert len(temperature) == 1 and "0.2" in temperature[0] and "0.15" in temperature[0]
     assert d.delays == pytest.approx({"level": 0.3, "temperature": 0.2})
 
-    only_level = decide(4, good_paths(0.3, 0.1), BOUNDS, "hops")
+    only_level = decide(4, typed_paths(good_paths(0.3, 0.1)), BOUNDS, "hops")
     assert only_level.verdict == "reject"
     assert only_level.offending == ("level",)
     assert not any("temperature" in r for r in only_level.reasons)
@@ -92,14 +94,14 @@ def test_a_path_that_is_down_rejects_its_loop(down):
         "temperature.sensor": path(0.1, 2),
     }
     paths[down] = {"hops": -1, "estimates": est()}
-    d = decide(5, paths, BOUNDS, "hops")
+    d = decide(5, typed_paths(paths), BOUNDS, "hops")
     assert d.verdict == "reject"
     assert d.offending == ("level",)
     assert len(d.reasons) == 1 and d.reasons[0].startswith("level") and "down" in d.reasons[0]
     assert "level" not in d.delays  # no delay for a loop without a route
     assert d.delays["temperature"] == pytest.approx(0.1)
 
-    delays, _ = control_path_delays(paths, ("level", "temperature"), "hops")
+    delays, _ = control_path_delays(typed_paths(paths), ("level", "temperature"), "hops")
     assert delays["level"] is None
     assert delays["temperature"] == pytest.approx(0.1)
 
@@ -124,7 +126,7 @@ def test_estimate_preference_and_fallback(preferred, estimates, value, used):
         "level.sensor": {"hops": 3, "estimates": estimates},
         "temperature.sensor": path(0.1, 2),
     }
-    d = decide(0, paths, BOUNDS, preferred)
+    d = decide(0, typed_paths(paths), BOUNDS, preferred)
     assert d.verdict == "accept"
     assert d.delays["level"] == pytest.approx(value)
     assert d.estimates_used["level.sensor"] == used
@@ -136,7 +138,7 @@ def test_sensor_and_actuator_paths_add_up():
         "level.actuator": {"hops": 2, "estimates": est(ping=0.12)},  # falls back to ping
         "temperature.sensor": path(0.1, 2),
     }
-    d = decide(0, paths, BOUNDS, "hops")
+    d = decide(0, typed_paths(paths), BOUNDS, "hops")
     assert d.verdict == "accept"
     assert d.delays["level"] == pytest.approx(0.22)
     assert d.estimates_used == {
@@ -146,7 +148,7 @@ def test_sensor_and_actuator_paths_add_up():
     }
     # each path alone is below the bound 0.25, their sum is not
     paths["level.sensor"] = path(0.15, 2)
-    d = decide(1, paths, BOUNDS, "hops")
+    d = decide(1, typed_paths(paths), BOUNDS, "hops")
     assert d.verdict == "reject"
     assert d.offending == ("level",)
     assert d.delays["level"] == pytest.approx(0.27)
@@ -154,15 +156,15 @@ def test_sensor_and_actuator_paths_add_up():
 
 def test_wired_loops_need_no_path():
     paths = {"temperature.sensor": path(0.1, 2)}
-    d = decide(0, paths, BOUNDS, "hops", wired={"level": 0.05})
+    d = decide(0, typed_paths(paths), BOUNDS, "hops", wired={"level": 0.05})
     assert d.verdict == "accept"
     assert d.delays == pytest.approx({"level": 0.05, "temperature": 0.1})
     # a wired delay is judged against its bound like any other
-    d = decide(0, paths, BOUNDS, "hops", wired={"level": 0.3})
+    d = decide(0, typed_paths(paths), BOUNDS, "hops", wired={"level": 0.3})
     assert d.verdict == "reject"
     assert d.offending == ("level",)
     # without ``wired`` the level loop has no sensor path: refused
-    assert decide(0, paths, BOUNDS, "hops").verdict == "refuse"
+    assert decide(0, typed_paths(paths), BOUNDS, "hops").verdict == "refuse"
 
 
 def _malformed(edit) -> dict[str, Any]:
@@ -229,10 +231,21 @@ REFUSALS = {
 }
 
 
+SEMANTIC = {"unknown loop", "unknown direction", "routed path without estimate", "no sensor path"}
+"""The refusals only the agent can make (it knows the loops); the others are the schema's."""
+
+
 @pytest.mark.parametrize("case", sorted(REFUSALS))
 def test_malformed_proposals_are_refused_naming_the_field(case):
     paths, field = REFUSALS[case]
-    d = decide(9, paths, BOUNDS, "hops")
+    try:
+        typed = typed_paths(paths)
+    except SchemaError as err:  # what the agent node refuses the proposal with (on_invalid)
+        assert case not in SEMANTIC, err.problems
+        assert any(p.startswith(field) for p in err.problems), err.problems
+        return
+    assert case in SEMANTIC
+    d = decide(9, typed, BOUNDS, "hops")
     assert d.verdict == "refuse", d
     assert d.proposal == 9
     assert len(d.reasons) == 1
@@ -241,7 +254,7 @@ def test_malformed_proposals_are_refused_naming_the_field(case):
     if case == "no sensor path":
         assert "level" in d.reasons[0]
     with pytest.raises(ProposalError, match=r"paths"):
-        control_path_delays(paths, ("level", "temperature"), "hops")
+        control_path_delays(typed, ("level", "temperature"), "hops")
 
 
 # --------------------------------------------------------------------------------------------
@@ -481,7 +494,7 @@ GATEWAY_PATHS = {
 def proposal(pid: Any = 0, level_hops: float = 0.17) -> dict[str, Any]:
     paths = {k: {**v, "estimates": dict(v["estimates"])} for k, v in GATEWAY_PATHS.items()}
     paths["level.sensor"]["estimates"]["hops"] = level_hops
-    return {"id": pid, "paths": paths}
+    return proposal_body(pid, paths)
 
 
 def test_rates_per_mode(wncs):
@@ -499,7 +512,7 @@ def test_rates_per_mode(wncs):
         "startup": (BENCHMARK, closed),
     }
     for mode, (periods, loops_closed) in expected.items():
-        d = c.on_mode({"mode": mode})
+        d = ask_mode(c, {"mode": mode})
         assert d.verdict == "accept"
         r = c.rates()
         assert r["mode"] == mode
@@ -511,9 +524,9 @@ def test_rates_per_mode(wncs):
 @pytest.mark.parametrize("body", [{"mode": "bogus"}, {"mode": None}, {}, "steady_state", None])
 def test_unknown_mode_is_refused(wncs, body):
     c = coordinator(wncs)
-    c.on_mode({"mode": "steady_state"})
+    ask_mode(c, {"mode": "steady_state"})
     before = c.rates()
-    d = c.on_mode(body)
+    d = ask_mode(c, body)
     assert d.verdict == "refuse"
     assert "mode" in d.reasons[0]
     assert c.mode == "steady_state"
@@ -538,9 +551,9 @@ def test_unknown_mode_is_refused(wncs, body):
 )
 def test_invalid_setpoint_is_refused(wncs, body):
     c = coordinator(wncs)
-    c.on_mode({"mode": "steady_state"})
+    ask_mode(c, {"mode": "steady_state"})
     now = to_ticks(10.0)
-    d, value, when = c.on_setpoint("level", body, now)
+    d, value, when = ask_setpoint(c, "level", body, now)
     assert d.verdict == "refuse"
     assert value is None and when == now
     assert c.mode == "steady_state"
@@ -553,9 +566,9 @@ def test_invalid_setpoint_is_refused(wncs, body):
 )
 def test_valid_setpoint_closes_the_loops_first(wncs, t_apply, expected):
     c = coordinator(wncs)
-    c.on_mode({"mode": "steady_state"})
+    ask_mode(c, {"mode": "steady_state"})
     body = {"value": 0.72} if t_apply is None else {"value": 0.72, "t_apply": t_apply}
-    d, value, when = c.on_setpoint("level", body, to_ticks(15.0))
+    d, value, when = ask_setpoint(c, "level", body, to_ticks(15.0))
     assert d.verdict == "accept"
     assert value == 0.72 and isinstance(value, float)
     assert when == expected  # max(t_apply, now)
@@ -564,13 +577,13 @@ def test_valid_setpoint_closes_the_loops_first(wncs, t_apply, expected):
     assert r["closed"] == {"level": True, "temperature": True}
     assert r["periods"] == c.control_periods
     # an integer value is passed on as a number too
-    _, value, _ = c.on_setpoint("temperature", {"value": 58}, to_ticks(15.0))
+    _, value, _ = ask_setpoint(c, "temperature", {"value": 58}, to_ticks(15.0))
     assert value == 58.0
 
 
 def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
     c = coordinator(wncs)
-    neg = c.on_proposal("network", proposal(0))
+    neg = offer(c, "network", proposal(0))
     d = neg.decision
     assert d.verdict == "accept", d.reasons
     assert d.proposal == 0 and neg.network == "network"
@@ -594,7 +607,7 @@ def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
     assert r["mode"] == "startup" and r["periods"] == assigned
 
     # the level path over the slow relay: 0.30 pu is above the level bound
-    neg = c.on_proposal("network", proposal(1, level_hops=0.30))
+    neg = offer(c, "network", proposal(1, level_hops=0.30))
     assert neg.decision.verdict == "reject"
     assert neg.decision.offending == ("level",)
     assert neg.assignment is None
@@ -609,7 +622,7 @@ def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
 
 def test_reject_before_any_acceptance_keeps_the_benchmark(wncs):
     c = coordinator(wncs)
-    neg = c.on_proposal("network", proposal(4, level_hops=0.30))
+    neg = offer(c, "network", proposal(4, level_hops=0.30))
     assert neg.decision.verdict == "reject"
     assert neg.decision.offending == ("level",)
     assert c.control_periods == BENCHMARK
@@ -640,9 +653,9 @@ def test_reject_before_any_acceptance_keeps_the_benchmark(wncs):
 )
 def test_malformed_proposals_change_nothing(wncs, network, body, field):
     c = coordinator(wncs)
-    c.on_mode({"mode": "steady_state"})
+    ask_mode(c, {"mode": "steady_state"})
     before = c.rates()
-    neg = c.on_proposal(network, body)
+    neg = offer(c, network, body)
     assert neg.decision.verdict == "refuse"
     assert field in neg.decision.reasons[0], neg.decision.reasons
     assert neg.assignment is None
@@ -652,27 +665,38 @@ def test_malformed_proposals_change_nothing(wncs, network, body, field):
 
 
 # --------------------------------------------------------------------------------------------
-# Known bugs: malformed proposals that crash the core instead of being refused
+# Malformed entries that once crashed the core: the schema refuses them now
 # --------------------------------------------------------------------------------------------
 
 CRASHES = {
-    # msgpack (bus_schemas.codec, raw=False) delivers a bin-type key as bytes beside str keys:
-    # ``sorted(paths)`` in control_path_delays raises TypeError
-    "bytes key beside str keys": {**good_paths(), b"level.actuator": path(0.01, 1)},
-    # ``sorted(set(estimates) - set(ESTIMATES))`` in _estimate raises TypeError
-    "bytes estimate name beside str": {
-        **good_paths(),
-        "level.sensor": {"hops": 3, "estimates": {"hops": 0.1, b"x": 0.1, "y": 0.1}},
-    },
-    # ``math.isfinite`` of an int too large for a float raises OverflowError
-    "huge integer delay": {**good_paths(), "level.sensor": path(10**400, 3)},
+    # msgpack (bus_schemas.codec, raw=False) delivers a bin-type key as bytes beside str keys
+    # (once: ``sorted(paths)`` raised TypeError)
+    "bytes key beside str keys": (
+        {**good_paths(), b"level.actuator": path(0.01, 1)},
+        "paths: key b'level.actuator'",
+    ),
+    # (once: ``sorted(set(estimates) - set(ESTIMATES))`` raised TypeError)
+    "bytes estimate name beside str": (
+        {
+            **good_paths(),
+            "level.sensor": {"hops": 3, "estimates": {"hops": 0.1, b"x": 0.1, "y": 0.1}},
+        },
+        "paths.level.sensor.estimates: key b'x'",
+    ),
+    # (once: ``math.isfinite`` of an int too large for a float raised OverflowError)
+    "huge integer delay": (
+        {**good_paths(), "level.sensor": path(10**400, 3)},
+        "paths.level.sensor.estimates.hops",
+    ),
 }
 
 
 @pytest.mark.parametrize("case", sorted(CRASHES))
 def test_unorderable_or_oversized_entries_are_refused(case):
-    d = decide(2, CRASHES[case], BOUNDS, "hops")
-    assert d.verdict == "refuse"
+    paths, field = CRASHES[case]
+    with pytest.raises(SchemaError) as err:
+        typed_paths(paths)
+    assert any(p.startswith(field) for p in err.value.problems), err.value.problems
 
 
 @pytest.mark.parametrize("route", [5, ["s_level", 3, "gw"]])
@@ -680,7 +704,7 @@ def test_a_malformed_route_does_not_crash_the_agent(wncs, route):
     c = coordinator(wncs)
     body = proposal(0)
     body["paths"]["level.sensor"]["route"] = route
-    neg = c.on_proposal("network", body)
+    neg = offer(c, "network", body)
     if neg.decision.verdict == "refuse":
         assert c.control_periods == BENCHMARK and c.accepted == {}
     else:

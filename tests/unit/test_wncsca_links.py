@@ -17,6 +17,7 @@ from agents.wncsca.links import judge_links, link_groups
 from controllers.qdc import QDCNetwork, closed_loop_matrices
 from runtime.direct import coordinator as build_coordinator
 from scenario import load_scenario
+from tests.agent_requests import offer, proposal_body
 from tests.conftest import SCENARIOS, write_variant
 
 CASE = CSTRRecycleCase()
@@ -132,8 +133,10 @@ def test_the_coordinator_builds_the_group_from_the_controllers_laws(coordinator)
 def test_a_proposal_sets_the_update_period_from_the_links_delay(coordinator):
     config = coordinator.config.links
     for pid, d in enumerate((0.0009, 0.0094, 0.0009)):
-        neg = coordinator.on_proposal(
-            "wsn", {"id": pid, "paths": {"x1.link": _link_path(d), "x2.link": _link_path(d / 2)}}
+        neg = offer(
+            coordinator,
+            "wsn",
+            proposal_body(pid, {"x1.link": _link_path(d), "x2.link": _link_path(d / 2)}),
         )
         assert neg.decision.verdict == "accept", neg.decision.reasons
         want = find_h_range(DelayedUpdates(*_Law().closed_loop()), d, h_hi=config.h_hi)
@@ -147,14 +150,18 @@ def test_a_proposal_sets_the_update_period_from_the_links_delay(coordinator):
 
 def test_a_proposal_no_period_can_live_with_is_rejected_and_changes_nothing(coordinator):
     before = dict(coordinator.link_periods)
-    neg = coordinator.on_proposal(
-        "wsn", {"id": 7, "paths": {"x1.link": _link_path(0.08, 5), "x2.link": _link_path(0.001)}}
+    neg = offer(
+        coordinator,
+        "wsn",
+        proposal_body(7, {"x1.link": _link_path(0.08, 5), "x2.link": _link_path(0.001)}),
     )
     assert neg.decision.verdict == "reject"
     assert neg.decision.offending == ("x1", "x2")
     assert "no update period" in neg.decision.reasons[-1]
-    down = coordinator.on_proposal(
-        "wsn", {"id": 8, "paths": {"x1.link": _link_path(None, -1), "x2.link": _link_path(0.001)}}
+    down = offer(
+        coordinator,
+        "wsn",
+        proposal_body(8, {"x1.link": _link_path(None, -1), "x2.link": _link_path(0.001)}),
     )
     assert down.decision.verdict == "reject" and "no route" in down.decision.reasons[-1]
     assert coordinator.link_periods == before
@@ -164,13 +171,13 @@ def test_a_proposal_no_period_can_live_with_is_rejected_and_changes_nothing(coor
     ("paths", "why"),
     [
         ({"x1.link": _link_path(0.001)}, "paths.x2.link: missing"),
-        ({"x1.link": _link_path(-0.001), "x2.link": _link_path(0.001)}, "must be >= 0"),
-        ({"x1.link": "fast", "x2.link": _link_path(0.001)}, "expected a mapping"),
+        ({"x1.link": _link_path(-0.001), "x2.link": _link_path(0.001)}, "x1.link.estimates"),
+        ({"x1.link": "fast", "x2.link": _link_path(0.001)}, "paths.x1.link: Input should be"),
     ],
 )
 def test_a_malformed_link_path_is_refused(coordinator, paths, why):
     before = dict(coordinator.link_periods)
-    neg = coordinator.on_proposal("wsn", {"id": 9, "paths": paths})
+    neg = offer(coordinator, "wsn", proposal_body(9, paths))
     assert neg.decision.verdict == "refuse" and why in neg.decision.reasons[0]
     assert coordinator.link_periods == before
 
