@@ -5,7 +5,9 @@ engine (the same behaviours the bus engines run; ``tests/integration/test_engine
 holds the engines together) and prints the blake2b digest of its record as ``record.json``
 keeps it (:func:`runtime.report.save_record`), wall-clock figures left out (the agent's decision
 times). With ``--against REV`` the same is computed in a worktree of ``REV`` and every scenario
-is compared; the exit code is 1 when any differs.
+is compared; the exit code is 1 when any differs. A scenario with an agent whose method is not
+``fast`` runs once more with ``method: fast`` (``name.yaml[fast]``), so the fast method's
+predictor is held bit-equal too (the shipped scenarios use ``chance`` and ``paper``).
 
     .venv/bin/python bench/traces_digest.py --against HEAD~3
 """
@@ -37,10 +39,21 @@ def strip(x):
 out = {}
 with tempfile.TemporaryDirectory() as tmp:
     for path in sorted(Path(ROOT, "scenarios").glob("*.yaml")):
-        save_record(simulate(load_scenario(path)), Path(tmp))
-        data = strip(json.loads((Path(tmp) / "record.json").read_text()))
-        text = json.dumps(data, sort_keys=True).encode()
-        out[path.name] = hashlib.blake2b(text, digest_size=16).hexdigest()
+        scenario = load_scenario(path)
+        runs = {path.name: scenario}
+        for name, node in scenario.nodes.items():  # the other methods' searches too
+            if getattr(node, "method", "fast") != "fast":
+                nodes = {**scenario.nodes, name: node.model_copy(update={"method": "fast"})}
+                runs[path.name + "[fast]"] = scenario.model_copy(update={"nodes": nodes})
+        for label, run in runs.items():
+            try:
+                save_record(simulate(run), Path(tmp))
+            except ValueError as err:  # a method refused by the scenario's loops
+                out[label] = "refused: " + str(err).splitlines()[0][:40]
+                continue
+            data = strip(json.loads((Path(tmp) / "record.json").read_text()))
+            text = json.dumps(data, sort_keys=True).encode()
+            out[label] = hashlib.blake2b(text, digest_size=16).hexdigest()
 print(json.dumps(out))
 """
 

@@ -15,6 +15,11 @@ change at run time, and delivery jitter makes them uneven):
 
 Anti-windup by conditional integration (clamping): an integral update is discarded when the
 output is saturated and the update would drive it further into saturation.
+
+:class:`PI` is the law a controller node runs, one execution at a time; :func:`pi_update` is the
+same execution elementwise over arrays, for the agent's vectorised trials
+(:mod:`agents.wncsca.batch`, :mod:`agents.wncsca.chance`, :mod:`agents.wncsca.fast.predictor`),
+bit-equal to :meth:`PI.step` (``tests/unit/test_pi_update.py`` pins the two together).
 """
 
 from __future__ import annotations
@@ -22,9 +27,13 @@ from __future__ import annotations
 import math
 from typing import Literal
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-__all__ = ["PIConfig", "PI"]
+__all__ = ["PIConfig", "PI", "pi_update"]
+
+_Values = NDArray[np.float64] | float
 
 
 class PIConfig(BaseModel):
@@ -102,3 +111,33 @@ class PI:
         self._t_prev = t
         self._e_prev = e
         return min(max(v, c.u_min), c.u_max)
+
+
+def pi_update(
+    e: NDArray[np.float64],
+    increment: NDArray[np.float64],
+    integral: NDArray[np.float64],
+    u_bar: _Values,
+    kp: _Values,
+    u_min: _Values,
+    u_max: _Values,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One execution of :meth:`PI.step` elementwise: ``(u, integral after)``.
+
+    ``e`` is the error ``r - y`` of this execution and ``increment`` the integral's update
+    before clamping, ``Ki e dt`` with the error the integration rule takes (``e`` or the previous
+    execution's; zero at a loop's first execution); the clamp, the integral and the saturated
+    output follow :meth:`PI.step` operation by operation, so the values are bit-equal to it.
+    Elements the caller does not execute are its to mask (pass a zero increment and discard
+    ``u``).
+    """
+    base = u_bar + kp * e
+    v = base + integral + increment
+    if not (
+        np.fmin.reduce(v - u_min, axis=None) >= 0.0 and np.fmax.reduce(v - u_max, axis=None) <= 0.0
+    ):
+        # some output saturates (or is NaN): clamping, as PI.step
+        wind = ((v > u_max) & (increment > 0.0)) | ((v < u_min) & (increment < 0.0))
+        increment = np.where(wind, 0.0, increment)
+    integral = integral + increment
+    return np.minimum(np.maximum(base + integral, u_min), u_max), integral

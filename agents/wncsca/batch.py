@@ -61,7 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents.wncsca.model import LoopModel
-from controllers.pi import PIConfig
+from controllers.pi import PIConfig, pi_update
 from core.time import TICKS_PER_UNIT, to_ticks
 
 __all__ = ["BatchTrials"]
@@ -459,16 +459,9 @@ class BatchTrials:
                     incr = ki * err_i * dt
                     if not ex.all_started[j]:
                         incr = np.where(ex.started[a:b], incr, 0.0)
-                    base = ub + kp * e
-                    i_now = integral[pi_at]
-                    v = base + i_now + incr
-                    if np.fmin.reduce(v - lo) >= 0.0 and np.fmax.reduce(v - hi) <= 0.0:
-                        now = i_now + incr  # nothing saturates: no anti-windup (NaN: below)
-                    else:
-                        wind = ((v > hi) & (incr > 0.0)) | ((v < lo) & (incr < 0.0))
-                        now = i_now + np.where(wind, 0.0, incr)
-                    integral[pi_at] = now
-                    U_flat[ex.act[a:b]] = np.minimum(np.maximum(base + now, lo), hi)
+                    U_flat[ex.act[a:b]], integral[pi_at] = pi_update(
+                        e, incr, integral[pi_at], ub, kp, lo, hi
+                    )
                     e_prev[pi_at] = e
                 if j == L - 1:
                     break

@@ -61,6 +61,7 @@ from numpy.typing import NDArray
 
 from agents.wncsca.fast import LinearPredictor, phi1
 from agents.wncsca.model import Evaluation, LoopModel
+from controllers.pi import pi_update
 from core.time import TICKS_PER_UNIT, to_ticks, to_units
 from gateway import distribution
 
@@ -441,11 +442,7 @@ class LinearMonteCarlo:
         dt = np.where(first, 0.0, t - np.nan_to_num(t_exec[:, i]))
         incr = law.ki * (e_prev[:, i] if law.forward else e) * dt
         ubar = self.ubar[stage, i]
-        v = ubar + law.kp * e + integral[:, i] + incr
-        clamp = ((v > law.u_max) & (incr > 0)) | ((v < law.u_min) & (incr < 0))
-        incr = np.where(clamp, 0.0, incr)
-        new_int = integral[:, i] + incr
-        out = np.clip(ubar + law.kp * e + new_int, law.u_min, law.u_max)
+        out, new_int = pi_update(e, incr, integral[:, i], ubar, law.kp, law.u_min, law.u_max)
         integral[:, i] = np.where(mask, new_int, integral[:, i])
         e_prev[:, i] = np.where(mask, e, e_prev[:, i])
         t_exec[:, i] = np.where(mask, t, t_exec[:, i])
