@@ -129,6 +129,55 @@ class _Executions:
     integral_form: str  # "forward" (every execution), "backward" (every one) or "mixed"
 
 
+def _slot_executions(
+    first: _Plant,
+    slot: int,
+    S: NDArray[np.int64],
+    T: NDArray[np.float64],
+    D: NDArray[np.int64],
+    H: NDArray[np.int64],
+    valid: NDArray[np.bool_],
+    end: int,
+    plants: list[_Plant],
+    sp: NDArray[np.float64],
+    ubar: NDArray[np.float64],
+    stretch: NDArray[np.int64],
+    flat: NDArray[np.int64],
+) -> list[NDArray[Any]]:
+    """Loop ``slot``'s executions by item, then stop: its columns of :class:`_Executions`
+    (stop, slot, item, sample's stop, actuator, output, values, started, forward)."""
+    L, B = S.shape
+    ar = np.arange(B)
+    d, h = D[None, :, slot], H[None, :, slot]
+    execs = valid & (S >= d) & ((S - d) % h == 0)
+    src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
+    src = src.reshape(B, L).T - (ar * L)[None, :]
+    item, stop = np.nonzero(execs.T)  # by item, then stop
+    t = T[stop, item]
+    started = np.zeros(len(item), dtype=bool)
+    started[1:] = item[1:] == item[:-1]
+    t_prev = np.zeros(len(item))
+    t_prev[1:] = t[:-1]
+    dt = t - np.where(started, t_prev, 0.0)
+    laws = [p.laws[slot] for p in plants]
+    law = np.array([[lw.Kp, lw.Ki, lw.u_min, lw.u_max] for lw in laws]).T[:, item]
+    k = stretch[stop, item]
+    values = np.vstack([sp[item, k, slot], ubar[item, k, slot], law, dt])
+    fwd = np.array([lw.integration == "forward" for lw in laws])[item]
+    n = len(item)
+    return [
+        stop,
+        np.full(n, slot),
+        item,
+        src[stop, item],
+        np.full(n, first.act_idx[slot]),
+        np.full(n, first.out_idx[slot]),
+        values.T,
+        started,
+        fwd,
+    ]
+
+
 def _executions(
     first: _Plant,
     S: NDArray[np.int64],
@@ -149,39 +198,10 @@ def _executions(
     time since its previous execution (``t - t_prev`` as :class:`controllers.pi.PI` takes
     it)."""
     L, B = S.shape
-    ar = np.arange(B)
-    parts: list[list[NDArray[Any]]] = []
-    for slot in range(len(first.loops)):
-        d, h = D[None, :, slot], H[None, :, slot]
-        execs = valid & (S >= d) & ((S - d) % h == 0)
-        src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
-        src = src.reshape(B, L).T - (ar * L)[None, :]
-        item, stop = np.nonzero(execs.T)  # by item, then stop
-        t = T[stop, item]
-        started = np.zeros(len(item), dtype=bool)
-        started[1:] = item[1:] == item[:-1]
-        t_prev = np.zeros(len(item))
-        t_prev[1:] = t[:-1]
-        dt = t - np.where(started, t_prev, 0.0)
-        laws = [p.laws[slot] for p in plants]
-        law = np.array([[lw.Kp, lw.Ki, lw.u_min, lw.u_max] for lw in laws]).T[:, item]
-        k = stretch[stop, item]
-        values = np.vstack([sp[item, k, slot], ubar[item, k, slot], law, dt])
-        fwd = np.array([lw.integration == "forward" for lw in laws])[item]
-        n = len(item)
-        parts.append(
-            [
-                stop,
-                np.full(n, slot),
-                item,
-                src[stop, item],
-                np.full(n, first.act_idx[slot]),
-                np.full(n, first.out_idx[slot]),
-                values.T,
-                started,
-                fwd,
-            ]
-        )
+    parts = [
+        _slot_executions(first, slot, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
+        for slot in range(len(first.loops))
+    ]
     stop, slot_, item, src, act, out, values, started, fwd = (
         np.concatenate(col) for col in zip(*parts, strict=True)
     )
@@ -211,6 +231,93 @@ def _executions(
         forward=fwd,
         integral_form=form,
     )
+
+
+class _Substeps:
+    """The RK4 steps of each segment ``[S[j], S[j + 1]]`` (rk4_tuple's arithmetic): per substep
+    and stop, as states x items (a broadcast per numpy call costs more than the arithmetic on a
+    few items)."""
+
+    def __init__(self, T: NDArray[np.float64], first: _Plant) -> None:
+        self.span = span = T[1:] - T[:-1]
+        n_sub = np.maximum(1, np.ceil(span / first.max_step - 1e-9)).astype(np.int64)
+        n_sub = np.where(span > 0.0, n_sub, 0)
+        h_seg = np.where(n_sub > 0, span / np.maximum(n_sub, 1), 0.0)
+        n_max = int(n_sub.max(initial=0))
+        n_x = len(first.x0)
+        self.h = [
+            np.repeat(np.where(n_sub > q, h_seg, 0.0)[:, None, :], n_x, axis=1)
+            for q in range(n_max)
+        ]
+        self.half = [0.5 * v for v in self.h]
+        self.sixth = [v / 6.0 for v in self.h]
+        self.count: list[int] = (
+            n_sub.max(axis=1) if n_max else np.zeros(len(T) - 1, dtype=np.int64)
+        ).tolist()
+
+
+def _integrate(
+    first: _Plant, plants: list[_Plant], ex: _Executions, rk4: _Substeps
+) -> NDArray[np.float64]:
+    """The state of every item at every stop (stops x states x items): the loops' PI
+    executions (:func:`controllers.pi.pi_update`) at their stops, and rk4_tuple's arithmetic
+    element by element between them."""
+    B, n_loops = len(plants), len(first.loops)
+    L = len(rk4.count) + 1  # stops
+    integral = np.zeros(n_loops * B)  # PI state, slot * items + item
+    e_prev = np.zeros(n_loops * B)
+    params = tuple(np.array(col) for col in zip(*(p.params for p in plants), strict=True))
+    X = np.array([p.x0 for p in plants], dtype=float).T.copy()
+    U = np.array([p.u0 for p in plants]).T.copy()  # inputs x items
+    U_flat = U.reshape(-1)  # a view: input * items + item
+    f = first.kind.rhs_batch
+    # the terms of the plant's rhs that the inputs fix, once per segment, when it offers them
+    held = getattr(first.kind, "rhs_batch_inputs", None)
+    f_held = getattr(first.kind, "rhs_batch_held", None)
+    outputs = first.kind.outputs_batch
+    XS = np.zeros((L, len(X), B))
+    with np.errstate(all="ignore"):
+        for j in range(L):
+            XS[j] = X
+            a, b = ex.bounds[j], ex.bounds[j + 1]
+            if a != b:  # the executions at this stop, every loop's at once
+                pi_at = ex.state[a:b]
+                r, ub, kp, ki, lo, hi, dt = ex.values[:, a:b]
+                y_all = outputs(XS[ex.src[a:b], :, ex.item[a:b]].T)  # the samples used
+                if isinstance(ex.out, int):
+                    y = y_all[ex.out]
+                else:
+                    y = np.array(y_all)[ex.out[a:b], np.arange(b - a)]
+                e = r - y
+                if ex.integral_form == "backward":
+                    err_i = e
+                elif ex.integral_form == "forward":
+                    err_i = e_prev[pi_at]
+                else:
+                    err_i = np.where(ex.forward[a:b], e_prev[pi_at], e)
+                incr = ki * err_i * dt
+                if not ex.all_started[j]:
+                    incr = np.where(ex.started[a:b], incr, 0.0)
+                U_flat[ex.act[a:b]], integral[pi_at] = pi_update(
+                    e, incr, integral[pi_at], ub, kp, lo, hi
+                )
+                e_prev[pi_at] = e
+            if j == L - 1:
+                break
+            if not rk4.count[j]:
+                continue
+            u = tuple(U)
+            g, arg = f, u
+            if held is not None and f_held is not None:
+                g, arg = f_held, held(params, u, X, rk4.span[j])
+            for q in range(rk4.count[j]):
+                hh, half, sixth = rk4.h[q][j], rk4.half[q][j], rk4.sixth[q][j]
+                k1 = np.array(g(params, X, arg))
+                k2 = np.array(g(params, X + half * k1, arg))
+                k3 = np.array(g(params, X + half * k2, arg))
+                k4 = np.array(g(params, X + hh * k3, arg))
+                X = X + sixth * (k1 + (k2 + k2) + (k3 + k3) + k4)  # 2 k = k + k
+    return XS
 
 
 class BatchTrials:
@@ -357,17 +464,36 @@ class BatchTrials:
         one structure), over the step phases."""
         n_ph = self.n_phases
         first = group[0][0]
-        n_loops = len(first.loops)
         plants = [p for p, _ in group for _ in range(n_ph)]
         B = len(plants)
         self.items += B
         self.batches += 1
         ar = np.arange(B)
         end = self.end
-        # -- per item: periods, delays, steps moved to the phase, set points per stretch
         H = np.repeat(np.array([h for _, h in group], dtype=np.int64), n_ph, axis=0)
         D = np.array([[dticks[n] for n in p.loops] for p in plants], dtype=np.int64)
-        phase = np.tile(np.arange(n_ph, dtype=np.int64), len(group))
+        t_step, t_sorted, sp, values, slots = self._placed_steps(len(group), plants, H)
+        ubar = self._feedforward(plants, sp)
+        S, valid = self._stops(first, H, D)
+        T = S / TICKS_PER_UNIT  # as the engine converts: to_units(ticks)
+        rk4 = _Substeps(T, first)
+        # -- executions: at stop j of item i, loop slot l uses the sample taken at stop src
+        flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
+        stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
+        # the executions of each loop, everything about them that is not state gathered here
+        ex = _executions(first, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
+        XS = _integrate(first, plants, ex, rk4)
+        return self._overshoots(group, XS, S, valid, t_step, t_sorted, sp, values, slots)
+
+    def _placed_steps(
+        self, n_group: int, plants: list[_Plant], H: NDArray[np.int64]
+    ) -> tuple[NDArray[Any], ...]:
+        """Per item: the steps moved to the phase, sorted, and the set points per stretch;
+        ``(t_step, t_sorted, sp, values, slots)``."""
+        n_ph, first, B = self.n_phases, plants[0], len(plants)
+        ar = np.arange(B)
+        n_loops = len(first.loops)
+        phase = np.tile(np.arange(n_ph, dtype=np.int64), n_group)
         n_steps = len(first.steps)
         slots = np.array([st[1] for st in first.steps], dtype=np.int64)
         t_test = np.array([st[0] for st in first.steps], dtype=np.int64)
@@ -384,11 +510,17 @@ class BatchTrials:
         for st in range(n_steps):
             sp[:, st + 1] = sp[:, st]
             sp[ar, st + 1, slots[order[:, st]]] = values[ar, order[:, st]]
-        ubar = self._feedforward(plants, sp)
-        # -- per item: the sorted stops (monitoring grid, samples, executions), padded with end
+        return t_step, t_sorted, sp, values, slots
+
+    def _stops(
+        self, first: _Plant, H: NDArray[np.int64], D: NDArray[np.int64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Per item the sorted stops (monitoring grid, samples, executions), padded with the
+        end: ``(S, valid)``, stops x items."""
+        end, B = self.end, len(H)
         parts = [np.repeat(np.arange(0, end + 1, first.monitor)[None, :], B, axis=0)]
         parts.append(np.full((B, 1), end, dtype=np.int64))
-        for slot in range(n_loops):
+        for slot in range(len(first.loops)):
             k = np.arange(int(end // H[:, slot].min()) + 1, dtype=np.int64)[None, :]
             times = k * H[:, slot, None]
             parts.append(np.where(times <= end, times, end))
@@ -401,84 +533,7 @@ class BatchTrials:
         counts = np.sum(~dup, axis=1)
         L = int(counts.max())
         valid = np.arange(L)[:, None] < counts[None, :]
-        S = np.where(valid, cand[:, :L].T, end)  # stops x items
-        T = S / TICKS_PER_UNIT  # as the engine converts: to_units(ticks)
-        # -- the RK4 steps of each segment [S[j], S[j + 1]] (rk4_tuple's arithmetic)
-        span = T[1:] - T[:-1]
-        n_sub = np.maximum(1, np.ceil(span / first.max_step - 1e-9)).astype(np.int64)
-        n_sub = np.where(span > 0.0, n_sub, 0)
-        h_seg = np.where(n_sub > 0, span / np.maximum(n_sub, 1), 0.0)
-        n_max = int(n_sub.max(initial=0))
-        n_x = len(first.x0)
-        # per substep and stop, as states x items (a broadcast per numpy call costs more than
-        # the arithmetic on a few items)
-        sub_h = [
-            np.repeat(np.where(n_sub > q, h_seg, 0.0)[:, None, :], n_x, axis=1)
-            for q in range(n_max)
-        ]
-        sub_half = [0.5 * v for v in sub_h]
-        sub_sixth = [v / 6.0 for v in sub_h]
-        # -- executions: at stop j of item i, loop slot l uses the sample taken at stop src
-        flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
-        stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
-        # the executions of each loop, everything about them that is not state gathered here
-        ex = _executions(first, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
-        integral = np.zeros(n_loops * B)  # PI state, slot * items + item
-        e_prev = np.zeros(n_loops * B)
-        # -- the state of every item, states x items: rk4_tuple's arithmetic element by element
-        params = tuple(np.array(col) for col in zip(*(p.params for p in plants), strict=True))
-        X = np.array([p.x0 for p in plants], dtype=float).T.copy()
-        U = np.array([p.u0 for p in plants]).T.copy()  # inputs x items
-        U_flat = U.reshape(-1)  # a view: input * items + item
-        f = first.kind.rhs_batch
-        # the terms of the plant's rhs that the inputs fix, once per segment, when it offers them
-        held = getattr(first.kind, "rhs_batch_inputs", None)
-        f_held = getattr(first.kind, "rhs_batch_held", None)
-        outputs = first.kind.outputs_batch
-        XS = np.zeros((L, len(X), B))
-        n_here = (n_sub.max(axis=1) if n_max else np.zeros(L - 1, dtype=np.int64)).tolist()
-        with np.errstate(all="ignore"):
-            for j in range(L):
-                XS[j] = X
-                a, b = ex.bounds[j], ex.bounds[j + 1]
-                if a != b:  # the executions at this stop, every loop's at once
-                    idx, pi_at = ex.item[a:b], ex.state[a:b]
-                    r, ub, kp, ki, lo, hi, dt = ex.values[:, a:b]
-                    y_all = outputs(XS[ex.src[a:b], :, idx].T)  # the samples used
-                    if isinstance(ex.out, int):
-                        y = y_all[ex.out]
-                    else:
-                        y = np.array(y_all)[ex.out[a:b], np.arange(b - a)]
-                    e = r - y
-                    if ex.integral_form == "backward":
-                        err_i = e
-                    elif ex.integral_form == "forward":
-                        err_i = e_prev[pi_at]
-                    else:
-                        err_i = np.where(ex.forward[a:b], e_prev[pi_at], e)
-                    incr = ki * err_i * dt
-                    if not ex.all_started[j]:
-                        incr = np.where(ex.started[a:b], incr, 0.0)
-                    U_flat[ex.act[a:b]], integral[pi_at] = pi_update(
-                        e, incr, integral[pi_at], ub, kp, lo, hi
-                    )
-                    e_prev[pi_at] = e
-                if j == L - 1:
-                    break
-                if not n_here[j]:
-                    continue
-                u = tuple(U)
-                g, arg = f, u
-                if held is not None and f_held is not None:
-                    g, arg = f_held, held(params, u, X, span[j])
-                for q in range(n_here[j]):
-                    hh, half, sixth = sub_h[q][j], sub_half[q][j], sub_sixth[q][j]
-                    k1 = np.array(g(params, X, arg))
-                    k2 = np.array(g(params, X + half * k1, arg))
-                    k3 = np.array(g(params, X + half * k2, arg))
-                    k4 = np.array(g(params, X + hh * k3, arg))
-                    X = X + sixth * (k1 + (k2 + k2) + (k3 + k3) + k4)  # 2 k = k + k
-        return self._overshoots(group, XS, S, valid, t_step, t_sorted, sp, values, slots)
+        return np.where(valid, cand[:, :L].T, end), valid
 
     def _feedforward(self, plants: list[_Plant], sp: NDArray[np.float64]) -> NDArray[np.float64]:
         """Each loop's feedforward per item and stretch (0 for a loop without one)."""

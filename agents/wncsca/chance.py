@@ -60,6 +60,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents.wncsca.fast import LinearPredictor, phi1
+from agents.wncsca.fast.predictor import PlantData
 from agents.wncsca.model import Evaluation, LoopModel
 from controllers.pi import pi_update
 from core.time import TICKS_PER_UNIT, to_ticks, to_units
@@ -147,6 +148,43 @@ class _Uniforms:
 _BLOCK = 64
 
 
+@dataclass(frozen=True)
+class _Windows:
+    """The test's steps as the overshoot reads them: each step's loop, start and target values,
+    and its window ``[start, end)`` per realization (it ends at the loop's next step)."""
+
+    loop: list[int]
+    frm: NDArray[np.float64]
+    to: NDArray[np.float64]
+    start: NDArray[np.float64]  # steps x realizations
+    end: NDArray[np.float64]
+
+    def watch(
+        self,
+        ext: NDArray[np.float64],
+        mon: NDArray[np.bool_],
+        t: NDArray[np.float64],
+        y: NDArray[np.float64],
+    ) -> None:
+        """Raise each step's largest excursion ``ext`` (realizations x steps) by the outputs
+        ``y`` the monitor reads at ``t`` (where ``mon``) inside the step's window."""
+        sign = np.sign(self.to - self.frm)
+        for s, i in enumerate(self.loop):
+            act = mon & (t >= self.start[s]) & (t < self.end[s])
+            if act.any():
+                v = sign[s] * (y[:, i] - self.to[s])
+                ext[:, s] = np.where(act, np.maximum(ext[:, s], v), ext[:, s])
+
+    def overshoots(self, ext: NDArray[np.float64], n_loops: int) -> NDArray[np.float64]:
+        """Each loop's overshoot (%), the worst of its steps', per realization."""
+        size = np.abs(self.to - self.frm)
+        os_steps = 100.0 * np.maximum(ext, 0.0) / np.where(size > 0, size, np.inf)
+        out = np.zeros((len(ext), n_loops))
+        for s, i in enumerate(self.loop):
+            out[:, i] = np.maximum(out[:, i], os_steps[:, s])
+        return out
+
+
 class LinearMonteCarlo:
     """The agent's test on the linearised loops over ``realizations`` random realizations (see
     the module docstring).
@@ -206,6 +244,33 @@ class LinearMonteCarlo:
             sp[loop] = value
             stage_sp.append(dict(sp))
         n_loops = len(self.loops)
+        self._linearise_stages(plants, offsets, nx, nu, stage_sp)
+        self.initial = np.array([lin.initial[n] for n in self.loops])
+        rng = np.random.default_rng(seed)
+        self.phase_j = rng.integers(0, PHASES, size=(len(self.steps), self.R))
+        # common random numbers: sample k of realization r draws the same uniforms whatever
+        # the period (the streams grow in blocks of samples as shorter periods need more)
+        self._u_delay = [
+            _Uniforms(np.random.default_rng([seed, 1, i]), self.R) for i in range(n_loops)
+        ]
+        self._u_loss = [
+            _Uniforms(np.random.default_rng([seed, 2, i]), self.R) for i in range(n_loops)
+        ]
+        self.simulations = 0
+
+    def _linearise_stages(
+        self,
+        plants: list[PlantData],
+        offsets: Mapping[str, tuple[int, int]],
+        nx: int,
+        nu: int,
+        stage_sp: list[dict[str, float]],
+    ) -> None:
+        """Each stretch of the test on the plants linearised at the equilibrium holding its set
+        points (as the fast method does), switched in at the step, in modal form: ``lam``,
+        ``V``, ``Vi``, ``Vi B``, ``Vi c``, ``Cy V``, the outputs' offsets and the feedforwards
+        per stage."""
+        n_loops = len(self.loops)
         S = len(stage_sp)
         self.ubar = np.zeros((S, n_loops))
         self.lam = np.zeros((S, nx), dtype=complex)
@@ -216,8 +281,6 @@ class LinearMonteCarlo:
         self.CyV = np.zeros((S, n_loops, nx), dtype=complex)
         self.y0 = np.zeros((S, n_loops))
         for k, values in enumerate(stage_sp):
-            # each stretch of the test on the plants linearised at the equilibrium holding its
-            # set points (as the fast method does), switched in at the step
             A = np.zeros((nx, nx))
             B = np.zeros((nx, nu))
             c = np.zeros(nx)
@@ -242,18 +305,6 @@ class LinearMonteCarlo:
             Vi = np.linalg.inv(V)
             self.lam[k], self.V[k], self.Vi[k] = lam, V, Vi
             self.ViB[k], self.Vic[k], self.CyV[k] = Vi @ B, Vi @ c, Cy @ V
-        self.initial = np.array([lin.initial[n] for n in self.loops])
-        rng = np.random.default_rng(seed)
-        self.phase_j = rng.integers(0, PHASES, size=(len(self.steps), self.R))
-        # common random numbers: sample k of realization r draws the same uniforms whatever
-        # the period (the streams grow in blocks of samples as shorter periods need more)
-        self._u_delay = [
-            _Uniforms(np.random.default_rng([seed, 1, i]), self.R) for i in range(n_loops)
-        ]
-        self._u_loss = [
-            _Uniforms(np.random.default_rng([seed, 2, i]), self.R) for i in range(n_loops)
-        ]
-        self.simulations = 0
 
     # -- one evaluation -----------------------------------------------------------------------
     def overshoots(
@@ -324,40 +375,15 @@ class LinearMonteCarlo:
         z = np.tile(self.Vi[0] @ self.x0, (R, 1))
         u = np.tile(self.u0, (R, 1))
 
-        def forcing() -> NDArray[np.complex128]:
-            forced: NDArray[np.complex128] = (
-                np.einsum("rnu,ru->rn", self.ViB[stage], u) + self.Vic[stage]
-            )
-            return forced
-
-        def output() -> NDArray[np.float64]:
-            outputs: NDArray[np.float64] = (
-                np.einsum("rln,rn->rl", self.CyV[stage], z).real + self.y0[stage]
-            )
-            return outputs
-
-        w = forcing()
+        w = self._forcing(stage, u)
         t_prev = np.zeros(R)
         r = np.tile(self.initial, (R, 1))
         buf = {n: np.zeros((R, n_samples[n])) for n in loops}
         integral = np.zeros((R, len(loops)))
         e_prev = np.zeros((R, len(loops)))
         t_exec = np.full((R, len(loops)), np.nan)
-        ext = np.full((R, len(self.steps)), -np.inf)
-        # per step: its loop, direction, target, and its window's end (the loop's next step)
-        s_loop = [loops.index(loop) for _, loop, _ in self.steps]
-        s_from, s_to = [], []
-        current = dict(zip(loops, self.initial, strict=True))
-        for _, loop, value in self.steps:
-            s_from.append(current[loop])
-            s_to.append(value)
-            current[loop] = value
-        s_end = np.full((len(self.steps), R), np.inf)
-        for s in range(len(self.steps)):
-            later = [q for q in range(s + 1, len(self.steps)) if s_loop[q] == s_loop[s]]
-            if later:
-                s_end[s] = step_t[later[0]]
-        sign = np.sign(np.array(s_to) - np.array(s_from))
+        ext = np.full((R, len(self.steps)), -np.inf)  # each step's largest excursion
+        win = self._windows(step_t)
         for e in range(T.shape[1]):
             kind = K[:, e]
             live = kind != _NONE
@@ -373,18 +399,13 @@ class LinearMonteCarlo:
             y = None
             mon = kind == _MONITOR
             if mon.any():
-                y = output()
-                for s in range(len(self.steps)):
-                    act = mon & (t >= step_t[s]) & (t < s_end[s])
-                    if act.any():
-                        i = s_loop[s]
-                        v = sign[s] * (y[:, i] - s_to[s])
-                        ext[:, s] = np.where(act, np.maximum(ext[:, s], v), ext[:, s])
+                y = self._output(stage, z)
+                win.watch(ext, mon, t, y)
             for i, n in enumerate(loops):
                 smp = (kind == _SAMPLE) & (W[:, e] == i)
                 if smp.any():
                     if y is None:
-                        y = output()
+                        y = self._output(stage, z)
                     buf[n][rows[smp], Ix[smp, e]] = y[smp, i]
                 dlv = (kind == _DELIVER) & (W[:, e] == i)
                 if dlv.any():
@@ -401,24 +422,51 @@ class LinearMonteCarlo:
                         t_exec,
                         u,
                     )
-                    w = forcing()
+                    w = self._forcing(stage, u)
             stp = kind == _STEP
             if stp.any():
                 for s in np.unique(W[stp, e]):
                     m = stp & (W[:, e] == s)
-                    r[m, s_loop[s]] = s_to[s]
+                    r[m, win.loop[s]] = win.to[s]
                     x = np.einsum("rij,rj->ri", self.V[stage[m]], z[m]).real
                     stage[m] += 1
                     z[m] = np.einsum("rij,rj->ri", self.Vi[stage[m]], x.astype(complex))
-                w = forcing()
-        size = np.abs(np.array(s_to) - np.array(s_from))
-        os_steps = 100.0 * np.maximum(ext, 0.0) / np.where(size > 0, size, np.inf)
-        out = np.zeros((R, len(loops)))
-        for s in range(len(self.steps)):
-            out[:, s_loop[s]] = np.maximum(out[:, s_loop[s]], os_steps[:, s])
+                w = self._forcing(stage, u)
+        out = win.overshoots(ext, len(loops))
         diverged = ~np.isfinite(z).all(axis=1) | (np.abs(z) > 1e12).any(axis=1)
         out[diverged] = np.inf
         return out
+
+    def _forcing(self, stage: NDArray[np.int64], u: NDArray[np.float64]) -> NDArray[np.complex128]:
+        """The modal forcing ``Vi (B u + c)`` of each realization's stage under inputs ``u``."""
+        forced: NDArray[np.complex128] = (
+            np.einsum("rnu,ru->rn", self.ViB[stage], u) + self.Vic[stage]
+        )
+        return forced
+
+    def _output(self, stage: NDArray[np.int64], z: NDArray[np.complex128]) -> NDArray[np.float64]:
+        """The loops' outputs ``Cy V z + y0`` of each realization's modal state ``z``."""
+        outputs: NDArray[np.float64] = (
+            np.einsum("rln,rn->rl", self.CyV[stage], z).real + self.y0[stage]
+        )
+        return outputs
+
+    def _windows(self, step_t: NDArray[np.float64]) -> _Windows:
+        """Per step: its loop, where it starts from and goes to, and its window's end (the
+        loop's next step), per realization."""
+        s_loop = [self.loops.index(loop) for _, loop, _ in self.steps]
+        s_from, s_to = [], []
+        current = dict(zip(self.loops, self.initial, strict=True))
+        for _, loop, value in self.steps:
+            s_from.append(current[loop])
+            s_to.append(value)
+            current[loop] = value
+        s_end = np.full((len(self.steps), self.R), np.inf)
+        for s in range(len(self.steps)):
+            later = [q for q in range(s + 1, len(self.steps)) if s_loop[q] == s_loop[s]]
+            if later:
+                s_end[s] = step_t[later[0]]
+        return _Windows(s_loop, np.array(s_from), np.array(s_to), step_t, s_end)
 
     def _execute(
         self,

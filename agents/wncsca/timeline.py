@@ -31,33 +31,54 @@ def _cause(p: dict[str, Any]) -> str:
     return str(p["source"]) if p["source"] == p["event"] else f"{p['source']}: {p['event']}"
 
 
+Event = tuple[float, float, str]
+"""One line of the timeline: its time, its order among events at that time, its text."""
+
+
 def format_timeline(summary: dict[str, Any]) -> str:
     """The agent's timeline, one event per line, in time order."""
     w = summary.get("wncsca")
     if not w:
         return ""
     unit = summary.get("time_unit", "pu")
-    events: list[tuple[float, float, str]] = []
+    events = [
+        *_proposals(w),
+        *_decisions(w),
+        *_assignments(w, unit),
+        *_energy(w),
+        *_steps(summary),
+    ]
+    lines = [
+        f"{t:8.3f} {unit}  {text}" for t, _, text in sorted(events, key=lambda e: (e[0], e[1]))
+    ]
+    return "\n".join(lines)
+
+
+def _proposals(w: dict[str, Any]) -> list[Event]:
+    """Each proposal with its cause, hop counts and delay estimates."""
+    events = []
     for p in w.get("proposals", []):
         est = ", ".join(f"{path} {_estimate(e)}" for path, e in (p.get("estimates") or {}).items())
         hops = ", ".join(f"{k} {v}" for k, v in (p.get("hops") or {}).items())
-        events.append(
-            (
-                p["t"],
-                _order(p),
-                f"proposal #{p['id']} ({_cause(p)}): hops {hops}; delays {est}",
-            )
-        )
+        text = f"proposal #{p['id']} ({_cause(p)}): hops {hops}; delays {est}"
+        events.append((p["t"], _order(p), text))
+    return events
+
+
+def _decisions(w: dict[str, Any]) -> list[Event]:
+    """Each verdict, with how long it took and its reasons."""
+    events = []
     for d in w.get("decisions", []):
         what = f"proposal #{d['proposal']}" if d["subject"] == "proposal" else d["subject"]
         took = f" [{d['decision_time_s']:.2f} s]" if d.get("decision_time_s") is not None else ""
-        events.append(
-            (
-                d["t"],
-                _order(d),
-                f"{what}: {d['verdict'].upper()}{took} - " + "; ".join(d["reasons"]),
-            )
-        )
+        text = f"{what}: {d['verdict'].upper()}{took} - " + "; ".join(d["reasons"])
+        events.append((d["t"], _order(d), text))
+    return events
+
+
+def _assignments(w: dict[str, Any], unit: str) -> list[Event]:
+    """Each change of the assigned rates (a repeat of the previous state is left out)."""
+    events = []
     previous = None
     for a in w.get("assignments", []):
         state = (
@@ -67,53 +88,61 @@ def format_timeline(summary: dict[str, Any]) -> str:
             tuple(a["control_periods"].items()),
             tuple(a.get("link_periods", {}).items()),
         )
-        if state == previous:
-            continue
+        if state != previous:
+            events.append((a["t"], _order(a), _rates(a, unit)))
         previous = state
-        loops = (
-            "closed"
-            if all(a["closed"].values())
-            else ("open (outputs held)" if not any(a["closed"].values()) else str(a["closed"]))
+    return events
+
+
+def _rates(a: dict[str, Any], unit: str) -> str:
+    """One assignment: mode, periods, loop states, link periods and the search behind it."""
+    closed = a["closed"]
+    loops = (
+        "closed"
+        if all(closed.values())
+        else ("open (outputs held)" if not any(closed.values()) else str(closed))
+    )
+    line = f"rates: mode {a['mode']}"
+    if a["periods"]:
+        line += f", periods {_periods(a['periods'])} {unit}, loops {loops}"
+    if a["control_periods"] != a["periods"]:
+        line += f" (control periods {_periods(a['control_periods'])} {unit})"
+    if a.get("link_periods"):
+        line += f", update periods of links {_periods(a['link_periods'])} {unit}"
+    if a.get("search"):
+        s = a["search"]
+        os_ = ", ".join(f"{n} {v:.1f} %" for n, v in s["overshoot_pct"].items() if v is not None)
+        line += (
+            f"; negotiated by the {s['method']} method in {s['alternations']} alternation(s), "
+            f"{len(s['trace'])} trials, predicted overshoot {os_}"
         )
-        line = f"rates: mode {a['mode']}"
-        if a["periods"]:
-            line += f", periods {_periods(a['periods'])} {unit}, loops {loops}"
-        if a["control_periods"] != a["periods"]:
-            line += f" (control periods {_periods(a['control_periods'])} {unit})"
-        if a.get("link_periods"):
-            line += f", update periods of links {_periods(a['link_periods'])} {unit}"
-        if a.get("search"):
-            s = a["search"]
-            os_ = ", ".join(
-                f"{n} {v:.1f} %" for n, v in s["overshoot_pct"].items() if v is not None
-            )
-            line += (
-                f"; negotiated by the {s['method']} method in {s['alternations']} alternation(s), "
-                f"{len(s['trace'])} trials, predicted overshoot {os_}"
-            )
-        events.append((a["t"], _order(a), line))
-    for e in w.get("energy", []):
-        if e.get("ratio") is not None:
-            events.append(
-                (
-                    e["t"],
-                    _order(e) + 0.5,
-                    f"projected network lifetime {e['lifetime_h_assigned']:.0f} h under "
-                    f"the negotiated periods vs {e['lifetime_h_benchmark']:.0f} h at the benchmark "
-                    f"periods (x{e['ratio']:.2f})",
-                )
-            )
-    for name, lp in summary.get("loops", {}).items():
-        for s in lp.get("steps", []):
-            events.append(
-                (
-                    s["t"],
-                    math.inf,
-                    f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
-                    f"{s['overshoot_pct']:.1f} %",
-                )
-            )
-    lines = [
-        f"{t:8.3f} {unit}  {text}" for t, _, text in sorted(events, key=lambda e: (e[0], e[1]))
+    return line
+
+
+def _energy(w: dict[str, Any]) -> list[Event]:
+    """Each projected lifetime gain, just after the assignment it follows."""
+    return [
+        (
+            e["t"],
+            _order(e) + 0.5,
+            f"projected network lifetime {e['lifetime_h_assigned']:.0f} h under "
+            f"the negotiated periods vs {e['lifetime_h_benchmark']:.0f} h at the benchmark "
+            f"periods (x{e['ratio']:.2f})",
+        )
+        for e in w.get("energy", [])
+        if e.get("ratio") is not None
     ]
-    return "\n".join(lines)
+
+
+def _steps(summary: dict[str, Any]) -> list[Event]:
+    """Each set-point step with its measured overshoot, last among events at its time."""
+    return [
+        (
+            s["t"],
+            math.inf,
+            f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
+            f"{s['overshoot_pct']:.1f} %",
+        )
+        for name, lp in summary.get("loops", {}).items()
+        for s in lp.get("steps", [])
+    ]

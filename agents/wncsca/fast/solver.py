@@ -401,10 +401,88 @@ def fast_periods(
     """
     t0 = time.perf_counter()
     sims0 = model.simulations
+    order_l, w = _order_and_weights(model, objective, weights, order)
+    delays = {n: float(delays.get(n, 0.0)) for n in model.loops}
+    predictor = LinearPredictor(model, delays)
+    batch = _batch(model, batched)
+    solver = Solver(model, delays, Curves(predictor), order_l, w, batch=batch)
+    choice, converged = _search(solver, model, objective, w)
+    final, feasible, reason = _outcome(solver, model, choice, converged)
+    os_final = solver.nonlinear(final)
+    predicted = solver.predicted(final)
+    return Assignment(
+        method="fast",
+        delays=delays,
+        periods=final,
+        overshoot_pct=os_final,
+        feasible=feasible and all(v <= model.config.overshoot_limit for v in os_final.values()),
+        converged=converged,
+        alternations=solver.alternations,
+        trace=solver.trace,
+        simulations=model.simulations - sims0,
+        decision_time_s=time.perf_counter() - t0,
+        reason=reason,
+        extra={
+            "objective": objective,
+            "weights": w,
+            "energy_rate": energy_rate(final, w),
+            "predicted_pct": {n: _finite(v) for n, v in predicted.items()},
+            "bias_pct": {n: _finite(os_final[n] - predicted[n]) for n in model.loops},
+            **_counts(predictor, solver, batch),
+        },
+    )
+
+
+def _outcome(
+    solver: Solver, model: LoopModel, choice: dict[str, float] | None, converged: bool
+) -> tuple[dict[str, float], bool, str]:
+    """The periods to assign, whether a choice was found, and the reason when it was not (the
+    benchmark periods are assigned then) or when the search did not settle."""
+    if choice is not None:
+        unsettled = "the corrected search did not settle: the last checked choice is assigned"
+        return dict(choice), True, "" if converged else unsettled
     cfg = model.config
+    return (
+        dict(model.benchmark),
+        False,
+        f"no periods down to {cfg.resolution:g} keep every overshoot within "
+        f"{cfg.overshoot_limit:g} % on the non-linear check ({len(solver.checked)} checked)",
+    )
+
+
+def _batch(model: LoopModel, batched: bool | None) -> BatchTrials | None:
+    """The batched checks when asked for (default: when the loops are on more than one plant,
+    where the batch pays off) and every plant allows them, else ``None``."""
+    if batched is None:
+        batched = len({model.trials.spec.loops[n].plant for n in model.loops}) > 1
+    batch = BatchTrials(model) if batched else None
+    return batch if batch is not None and batch.available else None
+
+
+def _counts(
+    predictor: LinearPredictor, solver: Solver, batch: BatchTrials | None
+) -> dict[str, int]:
+    """The work a search did: linear predictions (and their items), checks, batched trials."""
+    return {
+        "predictions": predictor.predictions,
+        "predicted_items": predictor.items,
+        "checks": len(solver.checked),
+        "batched_trials": batch.items if batch is not None else 0,
+        "batches": batch.batches if batch is not None else 0,
+    }
+
+
+def _order_and_weights(
+    model: LoopModel,
+    objective: str,
+    weights: Mapping[str, float] | None,
+    order: Sequence[str] | None,
+) -> tuple[list[str], dict[str, float]]:
+    """The loops in search order and each loop's weight, checked (``ValueError`` naming the
+    argument)."""
     if objective not in OBJECTIVES:
         raise ValueError(f"objective: expected one of {list(OBJECTIVES)}, got {objective!r}")
-    order_l = list(order or cfg.order or model.loops)
+    order_l = list(order or model.config.order or model.loops)
     unknown = [n for n in order_l if n not in model.loops]
     if unknown:
         raise ValueError(f"order: unknown loop(s) {unknown} (loops: {list(model.loops)})")
@@ -413,16 +491,15 @@ def fast_periods(
     bad = {n: v for n, v in w.items() if not v > 0}
     if bad:
         raise ValueError(f"weights: must be > 0, got {bad}")
-    delays = {n: float(delays.get(n, 0.0)) for n in model.loops}
-    limit = cfg.overshoot_limit
-    predictor = LinearPredictor(model, delays)
-    if batched is None:  # the batch pays off when a check would run several plants
-        batched = len({model.trials.spec.loops[n].plant for n in model.loops}) > 1
-    batch = BatchTrials(model) if batched else None
-    if batch is not None and not batch.available:
-        batch = None
-    solver = Solver(model, delays, Curves(predictor), order_l, w, batch=batch)
+    return order_l, w
 
+
+def _search(
+    solver: Solver, model: LoopModel, objective: str, w: Mapping[str, float]
+) -> tuple[dict[str, float] | None, bool]:
+    """The searches on the predictions, corrected by the non-linear checks: ``(choice,
+    converged)``, ``None`` when no checked choice keeps every overshoot within the limit."""
+    limit = model.config.overshoot_limit
     first = solver.paper(dict(model.benchmark), {n: limit for n in model.loops}, first=True)
     # when the raw predictions see nothing within the limit, the checks calibrate them from the
     # benchmark periods
@@ -437,46 +514,9 @@ def fast_periods(
                 choice, converged = other, ok_alt
         choice = solver.probe(choice)
     passed = [c for c in solver.checked if c[2]]
-    reason = ""
     if objective == "energy" and passed:  # the checked choice of least energy
         choice = min((c[0] for c in passed), key=lambda p: energy_rate(p, w))
-    if choice is not None:
-        final, feasible = dict(choice), True
-        if not converged:
-            reason = "the corrected search did not settle: the last checked choice is assigned"
-    else:
-        final, feasible = dict(model.benchmark), False
-        reason = (
-            f"no periods down to {cfg.resolution:g} keep every overshoot within {limit:g} % on "
-            f"the non-linear check ({len(solver.checked)} checked)"
-        )
-    os_final = solver.nonlinear(final)
-    predicted = solver.predicted(final)
-    return Assignment(
-        method="fast",
-        delays=delays,
-        periods=final,
-        overshoot_pct=os_final,
-        feasible=feasible and all(v <= limit for v in os_final.values()),
-        converged=converged,
-        alternations=solver.alternations,
-        trace=solver.trace,
-        simulations=model.simulations - sims0,
-        decision_time_s=time.perf_counter() - t0,
-        reason=reason,
-        extra={
-            "objective": objective,
-            "weights": w,
-            "energy_rate": energy_rate(final, w),
-            "predicted_pct": {n: _finite(v) for n, v in predicted.items()},
-            "bias_pct": {n: _finite(os_final[n] - predicted[n]) for n in model.loops},
-            "predictions": predictor.predictions,
-            "predicted_items": predictor.items,
-            "checks": len(solver.checked),
-            "batched_trials": batch.items if batch is not None else 0,
-            "batches": batch.batches if batch is not None else 0,
-        },
-    )
+    return choice, converged
 
 
 def _finite(value: float) -> float | None:
