@@ -1,5 +1,9 @@
 """The controller node: runs a control law on the bus, for one loop or for several at once.
 
+The node is the same for both; what differs (one move per sample, or the hold rule below) is the
+law's :class:`~controllers.execution.Execution`: :class:`~controllers.execution.SingleLoop`
+adapts a single-loop law, :class:`~controllers.execution.MultiLoop` runs a multi-loop one.
+
 **One loop** (``loop: l``): it computes a move for every sample delivered on ``loop/<l>/meas``
 with the set points current at that instant, and publishes it on ``loop/<l>/u``. Set points of all
 loops of the plant are followed (:meth:`~scenario.Scenario.setpoint_key`: from operations,
@@ -58,6 +62,7 @@ from pydantic import BaseModel
 
 from bus_schemas import Estimate, Move, Rates, Sample, Setpoint, keys
 from bus_schemas.envelope import RawEnvelope
+from controllers.execution import Execution, MultiLoop, SingleLoop
 from controllers.registry import MultiLoopContext, build_law, build_multi_loop_law
 from core.behaviour import Behaviour, Timer
 from core.time import to_units
@@ -120,52 +125,33 @@ class ControllerSpec:
 
 
 class ControllerBehaviour(Behaviour):
+    """The controller node (see the module docstring); its law executes by the rule of its
+    :class:`~controllers.execution.Execution` (:class:`SingleLoop` or :class:`MultiLoop`)."""
+
     def __init__(self, name: str, spec: ControllerSpec) -> None:
         super().__init__(name)
         self.spec = spec
         self.loops = spec.loops
-        self.multi = spec.multi
-        self.loop = self.loops[0]
         self.setpoints = dict(spec.setpoints)
-        self.closed = True
-        self._samples: list[Sample] = []
         self._setpoints_changed = False
         self._senders: dict[str, Timer] = {}  # link -> its transmissions (multi-loop laws)
-        if self.multi:
-            self.feedforward = None
-            self.law = build_multi_loop_law(
-                spec.law, loops=self.loops, plant=spec.plant, tau_s=spec.tau_s, context=spec.context
-            )
-            self._held: dict[str, tuple[int, float]] = {}  # loop -> (t_sampled, value)
-            self._arrived: list[tuple[str, Sample]] = []
-            self._measured = list(spec.measured)
-            self._moved = list(spec.moved)
-            for name in self._measured:
-                self.subscribe(keys.meas(name), Sample, self._on_meas_of(name))
-            for name in sorted(set(spec.sends) | set(spec.receives)):
-                if name in spec.sends:
-                    send = self._sender(name)
-                    self._senders[name] = self.every(spec.sends[name], send, end=spec.end)
-                if name in spec.receives:
-                    self.subscribe(keys.link_rx(name), Estimate, self._on_estimate(name))
-        else:
-            self.feedforward = spec.feedforward
-            self.law = build_law(spec.law, u_bar=self._u_bar(), plant=spec.plant, tau_s=spec.tau_s)
-            self.subscribe(keys.meas(self.loop), Sample, self._on_meas)
-        for name in self.setpoints:
-            self.subscribe(spec.setpoint_keys[name], Setpoint, self._on_setpoint(name))
+        self.execution = _execution(spec, self.setpoints)
+        self.law = self.execution.law
+        for loop in self.execution.measured:
+            self.subscribe(keys.meas(loop), Sample, self._on_meas_of(loop))
+        for link in sorted(set(spec.sends) | set(spec.receives)):
+            if link in spec.sends:
+                self._senders[link] = self.every(spec.sends[link], self._sender(link), end=spec.end)
+            if link in spec.receives:
+                self.subscribe(keys.link_rx(link), Estimate, self._on_estimate(link))
+        for loop in self.setpoints:
+            self.subscribe(spec.setpoint_keys[loop], Setpoint, self._on_setpoint(loop))
         if spec.governed:
             self.subscribe(keys.wncsca_rates(), Rates, self._on_rates)
 
-    def _u_bar(self) -> float:
-        return self.feedforward.u_bar(self.setpoints) if self.feedforward is not None else 0.0
-
-    def _on_meas(self, env: RawEnvelope, sample: Sample) -> None:
-        self._samples.append(sample)
-
     def _on_meas_of(self, loop: str) -> Callable[[RawEnvelope, Sample], None]:
         def handle(env: RawEnvelope, sample: Sample) -> None:
-            self._arrived.append((loop, sample))
+            self.execution.take(loop, sample)
 
         return handle
 
@@ -206,41 +192,25 @@ class ControllerBehaviour(Behaviour):
         for link, period in sorted(rates.link_periods.items()):
             if link in self._senders:
                 self._set_link_period(link, period)
-        if self.multi:
-            return  # loops of multi-loop controllers are not opened or closed by the agent
-        closed = rates.closed.get(self.loop, True)
-        if closed and not self.closed:
-            self.law.resume(to_units(self.now))
-        if closed != self.closed:
-            self.log.info("loop %s %s", self.loop, "closed" if closed else "opened (output held)")
-        self.closed = closed
+        change = self.execution.close(to_units(self.now), rates.closed)
+        if change is not None:
+            self.log.info("%s", change)
 
     def after_dispatch(self) -> None:
-        if self.multi:
-            self._execute_multi()
-            return
-        if self._setpoints_changed and self.feedforward is not None:
-            self.law.set_feedforward(self._u_bar())
-            self._setpoints_changed = False
-        if self.closed:
-            for sample in self._samples:
-                u = self.law.step(to_units(self.now), sample.value, self.setpoints[self.loop])
-                self.publish(keys.move(self.loop), Move(value=u, t_computed=self.now))
-        self._samples.clear()
+        changed, self._setpoints_changed = self._setpoints_changed, False
+        for moves in self.execution.moves(to_units(self.now), self.setpoints, changed):
+            for loop, u in moves.items():
+                self.publish(keys.move(loop), Move(value=u, t_computed=self.now))
 
-    def _execute_multi(self) -> None:
-        """The hold rule of the module docstring: take this round's samples in, execute once."""
-        if not self._arrived:
-            return
-        for loop, sample in self._arrived:
-            held = self._held.get(loop)
-            if held is None or sample.t_sampled >= held[0]:
-                self._held[loop] = (sample.t_sampled, sample.value)
-        self._arrived.clear()
-        if len(self._held) < len(self._measured):
-            return  # some loop has not delivered yet: no move
-        y = {n: self._held[n][1] for n in self._measured}
-        r = {n: self.setpoints[n] for n in self.loops}
-        u = self.law.step(to_units(self.now), y, r)
-        for name in self._moved:
-            self.publish(keys.move(name), Move(value=u[name], t_computed=self.now))
+
+def _execution(spec: ControllerSpec, setpoints: Mapping[str, float]) -> Execution:
+    """The law of ``spec``, built with the initial ``setpoints``, under its execution rule."""
+    if spec.multi:
+        law = build_multi_loop_law(
+            spec.law, loops=spec.loops, plant=spec.plant, tau_s=spec.tau_s, context=spec.context
+        )
+        return MultiLoop(law, spec.loops, spec.measured, spec.moved)
+    ff = spec.feedforward
+    u_bar = ff.u_bar(setpoints) if ff is not None else 0.0
+    law = build_law(spec.law, u_bar=u_bar, plant=spec.plant, tau_s=spec.tau_s)
+    return SingleLoop(law, spec.loops[0], ff)
