@@ -95,11 +95,10 @@ from pydantic import Field
 
 from controllers.nlpi import (
     NonlinearPI,
-    _limits,
+    TwoDofOptions,
     _plant_param,
     _SpecConfig,
-    damping_from_overshoot,
-    natural_frequency_from_settling,
+    design_targets,
 )
 
 __all__ = ["EWRLS", "TankEstimator", "STNLPIConfig", "SelfTuningNLPI"]
@@ -432,19 +431,9 @@ class SelfTuningNLPI:
             if config.a_prime0 is not None
             else _plant_param(plant, "a_prime", "stnlpi")
         )
-        u_min, u_max = _limits(config, plant)
-        zeta = damping_from_overshoot(config.overshoot_pct)
-        pi = NonlinearPI(
-            zeta=zeta,
-            omega_n=natural_frequency_from_settling(zeta, config.settling_time),
-            b=b0,
-            a_prime=a0,
-            u_min=u_min,
-            u_max=u_max,
-            integration=config.integration,
-            start=config.start,
-            u_start=config.u_start,
-        )
+        zeta, omega_n = design_targets(config)
+        options = TwoDofOptions.of(config, plant)
+        pi = NonlinearPI(zeta=zeta, omega_n=omega_n, b=b0, a_prime=a0, options=options)
         tenth = config.settling_time / 10.0
         est = TankEstimator(
             b0,

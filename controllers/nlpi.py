@@ -88,6 +88,7 @@ in the plant's level unit (mm for seed 002's simulated tank, m for its rig: see
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -210,6 +211,41 @@ def _limits(config: _SpecConfig, plant: Any) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+@dataclass(frozen=True)
+class TwoDofOptions:
+    """How a tank law integrates, clamps and starts (shared by both laws and the self-tuning one).
+
+    Attributes
+    ----------
+    u_min, u_max : float
+        Command limits (clamping, section 3.4).
+    integration : {"backward", "forward", "trapezoidal"}
+        Integration rule (``backward`` is eq. (20) as corrected).
+    start : {"rest", "zero"}
+        Integral at the first sample.
+    u_start : float, optional
+        Command at the first sample (bumpless from a held input); overrides ``start``.
+    """
+
+    u_min: float = -math.inf
+    u_max: float = math.inf
+    integration: Literal["backward", "forward", "trapezoidal"] = "backward"
+    start: Literal["rest", "zero"] = "rest"
+    u_start: float | None = None
+
+    @classmethod
+    def of(cls, config: _SpecConfig, plant: Any) -> TwoDofOptions:
+        """The options of ``config``, with limits defaulting to ``plant``'s pump's."""
+        u_min, u_max = _limits(config, plant)
+        return cls(u_min, u_max, config.integration, config.start, config.u_start)
+
+
+def design_targets(config: _SpecConfig) -> tuple[float, float]:
+    """``(zeta, omega_n)`` of the configured overshoot and settling time (eq. (13)-(14))."""
+    zeta = damping_from_overshoot(config.overshoot_pct)
+    return zeta, natural_frequency_from_settling(zeta, config.settling_time)
+
+
 # -- laws ---------------------------------------------------------------------------------------
 class _TwoDofBase:
     """Integrator, clamping and sample-interval bookkeeping shared by both laws."""
@@ -217,22 +253,14 @@ class _TwoDofBase:
     Kp: float
     Ki: float
 
-    def __init__(
-        self,
-        *,
-        u_min: float,
-        u_max: float,
-        integration: Literal["backward", "forward", "trapezoidal"],
-        start: Literal["rest", "zero"],
-        u_start: float | None = None,
-    ) -> None:
-        if not u_min < u_max:
-            raise ValueError(f"u_min ({u_min}) must be below u_max ({u_max})")
-        self.u_min = float(u_min)
-        self.u_max = float(u_max)
-        self.integration = integration
-        self.start = start
-        self.u_start = None if u_start is None else float(u_start)
+    def __init__(self, options: TwoDofOptions) -> None:
+        if not options.u_min < options.u_max:
+            raise ValueError(f"u_min ({options.u_min}) must be below u_max ({options.u_max})")
+        self.u_min = float(options.u_min)
+        self.u_max = float(options.u_max)
+        self.integration = options.integration
+        self.start = options.start
+        self.u_start = None if options.u_start is None else float(options.u_start)
         self.reset()
 
     def reset(self) -> None:
@@ -304,14 +332,8 @@ class NonlinearPI(_TwoDofBase):
         Closed-loop damping ratio and natural frequency (eq. (13)-(14)).
     b, a_prime : float
         Plant parameters the law is designed with (eq. (3b)).
-    u_min, u_max : float
-        Actuator limits.
-    integration : {"backward", "forward", "trapezoidal"}
-        Integration rule (``backward`` is eq. (20) as corrected).
-    start : {"rest", "zero"}
-        Integral at the first sample.
-    u_start : float, optional
-        Command at the first sample (bumpless from a held input); overrides ``start``.
+    options : TwoDofOptions
+        Limits, integration rule and start.
     """
 
     def __init__(
@@ -321,20 +343,14 @@ class NonlinearPI(_TwoDofBase):
         omega_n: float,
         b: float,
         a_prime: float,
-        u_min: float = -math.inf,
-        u_max: float = math.inf,
-        integration: Literal["backward", "forward", "trapezoidal"] = "backward",
-        start: Literal["rest", "zero"] = "rest",
-        u_start: float | None = None,
+        options: TwoDofOptions = TwoDofOptions(),
     ) -> None:
         if not (zeta > 0.0 and omega_n > 0.0):
             raise ValueError(f"zeta={zeta} and omega_n={omega_n} must be > 0")
         self.zeta = float(zeta)
         self.omega_n = float(omega_n)
         self.set_model(b, a_prime)
-        super().__init__(
-            u_min=u_min, u_max=u_max, integration=integration, start=start, u_start=u_start
-        )
+        super().__init__(options)
 
     @classmethod
     def from_config(
@@ -347,18 +363,9 @@ class NonlinearPI(_TwoDofBase):
         """
         b = config.b if config.b is not None else _plant_param(plant, "b", "nlpi")
         a = config.a_prime if config.a_prime is not None else _plant_param(plant, "a_prime", "nlpi")
-        u_min, u_max = _limits(config, plant)
-        zeta = damping_from_overshoot(config.overshoot_pct)
+        zeta, omega_n = design_targets(config)
         return cls(
-            zeta=zeta,
-            omega_n=natural_frequency_from_settling(zeta, config.settling_time),
-            b=b,
-            a_prime=a,
-            u_min=u_min,
-            u_max=u_max,
-            integration=config.integration,
-            start=config.start,
-            u_start=config.u_start,
+            zeta=zeta, omega_n=omega_n, b=b, a_prime=a, options=TwoDofOptions.of(config, plant)
         )
 
     def set_model(self, b: float, a_prime: float) -> None:
@@ -390,8 +397,8 @@ class TwoDofPI(_TwoDofBase):
         Gains (see :func:`pi2dof_gains`).
     b, a_prime : float
         Design model, used only for the ``start: rest`` integral.
-    u_min, u_max, integration, start, u_start
-        As :class:`NonlinearPI`.
+    options : TwoDofOptions
+        Limits, integration rule and start.
     """
 
     def __init__(
@@ -401,11 +408,7 @@ class TwoDofPI(_TwoDofBase):
         Ki: float,
         b: float,
         a_prime: float,
-        u_min: float = -math.inf,
-        u_max: float = math.inf,
-        integration: Literal["backward", "forward", "trapezoidal"] = "backward",
-        start: Literal["rest", "zero"] = "rest",
-        u_start: float | None = None,
+        options: TwoDofOptions = TwoDofOptions(),
     ) -> None:
         if not Ki > 0.0:
             raise ValueError(f"Ki={Ki} must be > 0")
@@ -413,9 +416,7 @@ class TwoDofPI(_TwoDofBase):
         self.Ki = float(Ki)
         self.b = float(b)
         self.a_prime = float(a_prime)
-        super().__init__(
-            u_min=u_min, u_max=u_max, integration=integration, start=start, u_start=u_start
-        )
+        super().__init__(options)
 
     @classmethod
     def from_config(
@@ -431,21 +432,8 @@ class TwoDofPI(_TwoDofBase):
         )
         root = math.sqrt(config.h_design)
         a = ap / (2.0 * root) if config.linearization == "tangent" else ap / root
-        zeta = damping_from_overshoot(config.overshoot_pct)
-        omega_n = natural_frequency_from_settling(zeta, config.settling_time)
-        kp, ki = pi2dof_gains(b, a, zeta, omega_n)
-        u_min, u_max = _limits(config, plant)
-        return cls(
-            Kp=kp,
-            Ki=ki,
-            b=b,
-            a_prime=ap,
-            u_min=u_min,
-            u_max=u_max,
-            integration=config.integration,
-            start=config.start,
-            u_start=config.u_start,
-        )
+        kp, ki = pi2dof_gains(b, a, *design_targets(config))
+        return cls(Kp=kp, Ki=ki, b=b, a_prime=ap, options=TwoDofOptions.of(config, plant))
 
     def _static(self, y: float) -> float:
         return -self.Kp * y

@@ -155,20 +155,24 @@ def _builder(
     )
 
 
+_KEY_USAGES = (
+    "digital_signature",
+    "content_commitment",
+    "key_encipherment",
+    "data_encipherment",
+    "key_agreement",
+    "key_cert_sign",
+    "crl_sign",
+    "encipher_only",
+    "decipher_only",
+)
+
+
 def _key_usage(*, signs_certificates: bool) -> x509.KeyUsage:
     """A CA's key signs certificates (and revocation lists) only; a router's or a node's
-    signs its TLS handshakes only."""
-    return x509.KeyUsage(
-        digital_signature=not signs_certificates,
-        content_commitment=False,
-        key_encipherment=False,
-        data_encipherment=False,
-        key_agreement=False,
-        key_cert_sign=signs_certificates,
-        crl_sign=signs_certificates,
-        encipher_only=False,
-        decipher_only=False,
-    )
+    signs its TLS handshakes only (every other usage of :data:`_KEY_USAGES` off)."""
+    on = {"key_cert_sign", "crl_sign"} if signs_certificates else {"digital_signature"}
+    return x509.KeyUsage(**{usage: usage in on for usage in _KEY_USAGES})
 
 
 def new_ca(common_name: str) -> RunCa:

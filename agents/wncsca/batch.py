@@ -129,26 +129,36 @@ class _Executions:
     integral_form: str  # "forward" (every execution), "backward" (every one) or "mixed"
 
 
-def _slot_executions(
-    first: _Plant,
-    slot: int,
-    S: NDArray[np.int64],
-    T: NDArray[np.float64],
-    D: NDArray[np.int64],
-    H: NDArray[np.int64],
-    valid: NDArray[np.bool_],
-    end: int,
-    plants: list[_Plant],
-    sp: NDArray[np.float64],
-    ubar: NDArray[np.float64],
-    stretch: NDArray[np.int64],
-    flat: NDArray[np.int64],
-) -> list[NDArray[Any]]:
+@dataclass(frozen=True)
+class _Grid:
+    """One batch's stops and what executions are placed from (:meth:`BatchSimulator._simulate`):
+    per stop ``j`` and item ``i`` (``S[j, i]`` ticks, ``T`` the same in time units, ``valid``
+    inside the item's run), each item's delays ``D`` and periods ``H`` (items x loops), the set
+    points ``sp`` and feedforwards ``ubar`` per stretch, the stretch in force at each stop
+    (``stretch``), and every column of ``S`` sorted and offset into one sorted array (``flat``)."""
+
+    first: _Plant
+    plants: list[_Plant]
+    S: NDArray[np.int64]
+    T: NDArray[np.float64]
+    D: NDArray[np.int64]
+    H: NDArray[np.int64]
+    valid: NDArray[np.bool_]
+    end: int
+    sp: NDArray[np.float64]
+    ubar: NDArray[np.float64]
+    stretch: NDArray[np.int64]
+    flat: NDArray[np.int64]
+
+
+def _slot_executions(g: _Grid, slot: int) -> list[NDArray[Any]]:
     """Loop ``slot``'s executions by item, then stop: its columns of :class:`_Executions`
     (stop, slot, item, sample's stop, actuator, output, values, started, forward)."""
+    first, S, T, valid, end, plants = g.first, g.S, g.T, g.valid, g.end, g.plants
+    sp, ubar, stretch, flat = g.sp, g.ubar, g.stretch, g.flat
     L, B = S.shape
     ar = np.arange(B)
-    d, h = D[None, :, slot], H[None, :, slot]
+    d, h = g.D[None, :, slot], g.H[None, :, slot]
     execs = valid & (S >= d) & ((S - d) % h == 0)
     src = np.searchsorted(flat, (S - d + (ar * (end + 1))[None, :]).T.ravel())
     src = src.reshape(B, L).T - (ar * L)[None, :]
@@ -178,30 +188,15 @@ def _slot_executions(
     ]
 
 
-def _executions(
-    first: _Plant,
-    S: NDArray[np.int64],
-    T: NDArray[np.float64],
-    D: NDArray[np.int64],
-    H: NDArray[np.int64],
-    valid: NDArray[np.bool_],
-    end: int,
-    plants: list[_Plant],
-    sp: NDArray[np.float64],
-    ubar: NDArray[np.float64],
-    stretch: NDArray[np.int64],
-    flat: NDArray[np.int64],
-) -> _Executions:
+def _executions(g: _Grid) -> _Executions:
     """The loops' executions in the stops ``S`` (stops x items): at stop ``j`` item ``i``
     executes loop ``l`` when ``S - tau_d`` is a sampling instant, on the sample of the stop at
     ``S - tau_d``, with the set point and feedforward of the stretch in force; ``dt`` is the
     time since its previous execution (``t - t_prev`` as :class:`controllers.pi.PI` takes
     it)."""
-    L, B = S.shape
-    parts = [
-        _slot_executions(first, slot, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
-        for slot in range(len(first.loops))
-    ]
+    first = g.first
+    L, B = g.S.shape
+    parts = [_slot_executions(g, slot) for slot in range(len(first.loops))]
     stop, slot_, item, src, act, out, values, started, fwd = (
         np.concatenate(col) for col in zip(*parts, strict=True)
     )
@@ -481,7 +476,7 @@ class BatchTrials:
         flat = (S + (ar * (end + 1))[None, :]).T.ravel()  # every column sorted, then offset
         stretch = np.sum(t_sorted[None, :, :] <= S[:, :, None], axis=2)  # steps at or before
         # the executions of each loop, everything about them that is not state gathered here
-        ex = _executions(first, S, T, D, H, valid, end, plants, sp, ubar, stretch, flat)
+        ex = _executions(_Grid(first, plants, S, T, D, H, valid, end, sp, ubar, stretch, flat))
         XS = _integrate(first, plants, ex, rk4)
         return self._overshoots(group, XS, S, valid, t_step, t_sorted, sp, values, slots)
 

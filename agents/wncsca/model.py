@@ -1,6 +1,6 @@
 """The agent's closed-loop model: its judged loops' plants and controllers with every loop carried
 by a wired path of constant delay, under the agent's set-point test, simulated by the ``direct``
-engine through the :class:`Trials` it is handed (seed 000, III.C-III.E: the WNCSCA judges a
+engine through the :class:`~agents.wncsca.trials.Trials` it is handed (seed 000, III.C-III.E: the WNCSCA judges a
 configuration by simulating its loops).
 
 :meth:`LoopModel.overshoots` is the one question every search asks: "with these sampling periods
@@ -16,14 +16,14 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from agents.wncsca.config import WncscaConfig
-from agents.wncsca.spec import ClosedLoopSpec
+from agents.wncsca.trials import Trials
 from core.record import RunRecord, loop_metrics
 from core.time import to_ticks
 
-__all__ = ["LoopModel", "Evaluation", "Trials"]
+__all__ = ["LoopModel", "Evaluation"]
 
 
 @dataclass(frozen=True)
@@ -40,68 +40,6 @@ class Evaluation:
         """Every loop (or those named) within ``limit``."""
         names = self.overshoot_pct if loops is None else loops
         return all(self.overshoot_pct[n] <= limit for n in names)
-
-
-class Trials(Protocol):
-    """What the agent's model simulates: its loops on wired paths under the set-point test,
-    built once by the scenario layer (:class:`agents.wncsca.spec.ClosedLoopSpec`) and run on the
-    direct engine for each trial (:class:`agents.wncsca.trials.Trials`)."""
-
-    @property
-    def loops(self) -> tuple[str, ...]:
-        """The loops judged by simulation, in name order."""
-        ...
-
-    @property
-    def benchmark(self) -> Mapping[str, float]:
-        """Each loop's benchmark sampling period (time units)."""
-        ...
-
-    @property
-    def spec(self) -> ClosedLoopSpec:
-        """The model (benchmark periods, no delay): what the fast and batched methods
-        linearise and integrate themselves."""
-        ...
-
-    @property
-    def fingerprint(self) -> str:
-        """A digest of everything that determines a trial's outcome but its periods and delays."""
-        ...
-
-    def run(
-        self,
-        periods: Mapping[str, float],
-        delays: Mapping[str, float],
-        phase: tuple[int, int] | None,
-    ) -> RunRecord:
-        """Simulate with these periods and control-path delays (time units); with
-        ``phase=(k, n)`` every test step is moved to ``k/n`` of its loop's period after a
-        sampling instant."""
-        ...
-
-    def run_steps(
-        self,
-        periods: Mapping[str, float],
-        delays: Mapping[str, float],
-        steps: list[tuple[float, str, float]],
-        end_time: float,
-        traces: Mapping[str, list[float | None]] | None = None,
-    ) -> RunRecord:
-        """Simulate these set-point steps (``(t, loop, value)``) instead of the test's, to
-        ``end_time``, with sensor-path delays replayed from ``traces``."""
-        ...
-
-    def run_replay(
-        self,
-        periods: Mapping[str, float],
-        delays: Mapping[str, float],
-        traces: Mapping[str, list[float | None]],
-        phases: Mapping[tuple[int, str], int],
-        denominator: int,
-    ) -> RunRecord:
-        """Simulate the test with sensor-path delays replayed from ``traces`` and the steps
-        moved to the phases ``phases[(tick, loop)] / denominator`` of their loop's period."""
-        ...
 
 
 class LoopModel:

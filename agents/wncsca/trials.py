@@ -5,8 +5,8 @@ on wired paths of constant delay, under the set-point test) and the
 :class:`~agents.wncsca.spec.Simulator` it is handed (the scenario layer's, on the direct
 engine). Each trial says only what changes: every loop's period and delay, the steps (the
 test's, moved to a phase of the period, or a judged step's), the end, and delay traces to
-replay (:mod:`agents.wncsca.chance`). It is the :class:`agents.wncsca.model.Trials` the searches
-simulate through.
+replay (:mod:`agents.wncsca.chance`). The agent's model (:class:`agents.wncsca.model.LoopModel`)
+and its searches simulate through it; the one seam below it is the ``Simulator``.
 """
 
 from __future__ import annotations
