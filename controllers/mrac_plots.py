@@ -50,18 +50,9 @@ def series(
     loops: Sequence[str],
     executions: Iterable[tuple[float, Mapping[str, float], Mapping[str, float]]],
 ) -> dict[str, Array]:
-    """What the MRAC figures of a run draw: the law replayed over the run's executions.
-
-    Parameters
-    ----------
-    config : MRACConfig
-        The controller's configuration.
-    loops : sequence of str
-        Its loops, in order (loop ``i`` measures ``x_i``, moves ``u_i``, its set point is
-        ``u_c,i``).
-    executions : iterable of (t, y, r)
-        Execution time (time units), held measurement and reference command per loop, e.g.
-        :func:`runtime.executions.multi_loop_executions` with the time in units.
+    """What the MRAC figures of a run draw: the law replayed over the run's executions
+    (``config``, ``loops`` and ``executions`` as :func:`controllers.mrac.replay` takes them; loop
+    ``i`` measures ``x_i``, moves ``u_i``, its set point is ``u_c,i``).
 
     Returns
     -------
