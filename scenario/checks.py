@@ -18,6 +18,7 @@ from pydantic import BaseModel
 
 from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
+from agents.wncsca.fast.predictor import MODELLED_LAWS, unmodelled_law
 from agents.wncsca.links import link_groups
 from controllers.registry import (
     accepts_actuator_only_loops,
@@ -257,6 +258,19 @@ def check_agent(s: ScenarioSchema) -> None:
             )
 
 
+
+def check_agent_method(s: ScenarioSchema) -> None:
+    """The agent's method models every loop it judges: the fast and chance methods linearise
+    PI loops only (:data:`agents.wncsca.fast.predictor.MODELLED_LAWS`); the paper's method
+    simulates any law."""
+    for name, cfg in s.nodes_of(WncscaConfig).items():
+        if cfg.method == "paper":
+            continue
+        for loop in s.simulated_loops():
+            law = s.controller(s.loops[loop].controller).law
+            if not isinstance(law, MODELLED_LAWS):
+                raise ValueError(f"nodes.{name}.method: {unmodelled_law(cfg.method, loop, law)}")
+
 def check_monitors(s: ScenarioSchema) -> None:
     """A monitor's loop and columns exist, and its loop has samples."""
     monitors = s.nodes_of(MonitorNodeConfig)
@@ -438,6 +452,7 @@ GRAPH_CHECKS: tuple[Callable[[ScenarioSchema], None], ...] = (
     check_clock,
     check_operator,
     check_agent,
+    check_agent_method,
     check_monitors,
     check_disturbances,
     check_setpoints,

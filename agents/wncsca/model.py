@@ -1,7 +1,7 @@
 """The agent's closed-loop model: its judged loops' plants and controllers with every loop carried
 by a wired path of constant delay, under the agent's set-point test, simulated by the ``direct``
-engine through the :class:`~agents.wncsca.trials.Trials` it is handed (seed 000, III.C-III.E: the WNCSCA judges a
-configuration by simulating its loops).
+engine through the :class:`~agents.wncsca.trials.Trials` it is handed (seed 000, III.C-III.E:
+the WNCSCA judges a configuration by simulating its loops).
 
 :meth:`LoopModel.overshoots` is the one question every search asks: "with these sampling periods
 and these control-path delays, how far does each loop overshoot its set-point step?". The answer

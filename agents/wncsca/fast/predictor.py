@@ -78,6 +78,22 @@ class PlantData:
         return equilibrium(self.model, y_bar, self.x0, self.u0, free)
 
 
+MODELLED_LAWS: tuple[type[PIConfig], ...] = (PIConfig,)
+"""The control laws the fast and chance methods model: their loops are linearised with the PI of
+:mod:`controllers.pi` (:func:`~controllers.pi.pi_update`). The paper's method judges a loop of
+any law, by simulating it (``scenario.checks.check_agent_method`` refuses the rest on load)."""
+
+
+def unmodelled_law(method: str, loop: str, law: Any) -> str:
+    """Why ``method`` cannot judge ``loop``, whose law ``law`` is not in :data:`MODELLED_LAWS`."""
+    modelled = ", ".join(repr(c.model_fields["type"].default) for c in MODELLED_LAWS)
+    return (
+        f"the {method} method cannot judge loop {loop!r}: its control law is "
+        f"{getattr(law, 'type', type(law).__name__)!r}, and the {method} method models only "
+        f"{modelled} loops; method 'paper' judges any law by simulating it"
+    )
+
+
 class LinearPredictor:
     """Predicted worst-case overshoots of the agent's test on the linearised, exactly discretised
     loops (see the module docstring), for batches of candidate periods.
@@ -109,11 +125,8 @@ class LinearPredictor:
         self.laws: dict[str, Law] = {}
         for n in self.loops:
             law = spec.loops[n].law
-            if not isinstance(law, PIConfig):
-                raise ValueError(
-                    f"fast method: loop {n!r} uses control law {law.type!r}; only 'pi' loops "
-                    "are modelled (use method 'paper')"
-                )
+            if not isinstance(law, MODELLED_LAWS):
+                raise ValueError(unmodelled_law("fast", n, law))
             self.laws[n] = Law(law.Kp, law.Ki, law.u_min, law.u_max, law.integration == "forward")
         self.plant_of = {n: spec.loops[n].plant for n in self.loops}
         self.plants: dict[str, PlantData] = {}
