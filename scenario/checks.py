@@ -258,7 +258,6 @@ def check_agent(s: ScenarioSchema) -> None:
             )
 
 
-
 def check_agent_method(s: ScenarioSchema) -> None:
     """The agent's method models every loop it judges: the fast and chance methods linearise
     PI loops only (:data:`agents.wncsca.fast.predictor.MODELLED_LAWS`); the paper's method
@@ -270,6 +269,39 @@ def check_agent_method(s: ScenarioSchema) -> None:
             law = s.controller(s.loops[loop].controller).law
             if not isinstance(law, MODELLED_LAWS):
                 raise ValueError(f"nodes.{name}.method: {unmodelled_law(cfg.method, loop, law)}")
+
+
+def check_agent_model(s: ScenarioSchema) -> None:
+    """The agent's own model (``model:``) names plants it judges, parameters of their models,
+    and uncertainty of numeric parameters with the believed value inside a stated interval."""
+    for name, cfg in s.nodes_of(WncscaConfig).items():
+        judged = sorted({s.loops[n].plant for n in s.simulated_loops()})
+        for plant, belief in sorted(cfg.model.items()):
+            at = f"nodes.{name}.model.{plant}"
+            if plant not in judged:
+                raise ValueError(f"{at}: not a plant of a loop the agent judges (plants: {judged})")
+            for param in belief.params:
+                if param not in s.plant(plant).params:
+                    known = sorted(s.plant(plant).params)
+                    raise ValueError(f"{at}.params.{param}: not a parameter of the plant ({known})")
+        try:
+            believed = s.believed(cfg)
+        except ValueError as err:
+            raise ValueError(f"nodes.{name}.{err}") from err
+        for plant, belief in sorted(cfg.model.items()):
+            params = believed.plant(plant).params
+            for param, spread in sorted(belief.uncertainty.items()):
+                at = f"nodes.{name}.model.{plant}.uncertainty.{param}"
+                value = params.get(param)
+                if not isinstance(value, int | float) or isinstance(value, bool):
+                    raise ValueError(f"{at}: not a numeric parameter of the plant ({value!r})")
+                if spread.interval is not None and not (
+                    spread.interval[0] <= value <= spread.interval[1]
+                ):
+                    raise ValueError(
+                        f"{at}.interval: the believed value {value} is outside {spread.interval}"
+                    )
+
 
 def check_monitors(s: ScenarioSchema) -> None:
     """A monitor's loop and columns exist, and its loop has samples."""
@@ -453,6 +485,7 @@ GRAPH_CHECKS: tuple[Callable[[ScenarioSchema], None], ...] = (
     check_operator,
     check_agent,
     check_agent_method,
+    check_agent_model,
     check_monitors,
     check_disturbances,
     check_setpoints,

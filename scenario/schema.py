@@ -692,6 +692,25 @@ class ScenarioSchema(BaseModel):
         """Every node that takes part in clock rounds: the scenario's nodes and the historian."""
         return sorted([*self.nodes, HISTORIAN])
 
+    def believed(self, config: WncscaConfig) -> Self:
+        """This scenario as agent ``config`` believes it: each plant of its ``model:`` with the
+        believed parameters (the others the plant node's own), validated (``ValueError`` naming
+        ``model.<plant>.params``: the agent's node adds its own prefix)."""
+        if not config.model:
+            return self
+        nodes = dict(self.nodes)
+        for plant, belief in sorted(config.model.items()):
+            cfg = self.plant(plant)
+            try:
+                nodes[plant] = PlantNodeConfig.model_validate(
+                    {**cfg.model_dump(), "params": {**cfg.params, **belief.params}}
+                )
+            except ValidationError as err:
+                e = err.errors()[0]
+                msg = str(e["msg"]).removeprefix("Value error, ")
+                raise ValueError(f"model.{plant}: {msg}") from err
+        return self.model_copy(update={"nodes": nodes})
+
     def agent_model(self, spec: ClosedLoopSpec) -> Self:
         """The coordination agent's closed-loop model (:func:`scenario.views.closed_loop_spec`)
         as a scenario of its own: this scenario's plants and controllers of the judged loops,
@@ -709,10 +728,13 @@ class ScenarioSchema(BaseModel):
             )
             for n in spec.names
         }
-        nodes: dict[str, Any] = {
-            n: cfg
+        controllers = {lp.controller for lp in spec.loops.values()}
+        nodes: dict[str, Any] = {  # the plants as the agent believes them, not the plant nodes
+            n: cfg.model_copy(update={"params": dict(spec.plants[n].params)})
+            if n in spec.plants
+            else cfg
             for n, cfg in self.nodes.items()
-            if n in spec.plants or n in {lp.controller for lp in spec.loops.values()}
+            if n in spec.plants or n in controllers
         }
         nodes[AGENT_NETWORK] = NetworkNodeConfig(kind="network")
         nodes[AGENT_OPERATOR] = OperatorNodeConfig(kind="operator")

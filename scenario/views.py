@@ -252,6 +252,7 @@ def closed_loop_spec(scenario: ScenarioSchema, config: WncscaConfig) -> ClosedLo
         A test step names an unknown loop or falls after the test's end, or a judged loop has
         no step (the agent judges a loop by the overshoot of its step).
     """
+    scenario = scenario.believed(config)  # the agent's own model of the plants
     names = scenario.simulated_loops()
     steps, end_time = _test(scenario, config, names)
     loops: dict[str, JudgedLoop] = {}
@@ -283,6 +284,8 @@ def closed_loop_spec(scenario: ScenarioSchema, config: WncscaConfig) -> ClosedLo
             max_step=cfg.max_step,
             monitor_period=cfg.monitor_period,
             noise=dict(cfg.noise),
+            params=dict(cfg.params),
+            uncertainty=dict(config.model[p].uncertainty) if p in config.model else {},
         )
     what = {  # everything a trial's outcome depends on but its periods and delays
         "plants": {p: scenario.plant(p).model_dump() for p in plants},
@@ -292,6 +295,8 @@ def closed_loop_spec(scenario: ScenarioSchema, config: WncscaConfig) -> ClosedLo
         "end_time": end_time,
         "seed": scenario.seed,
     }
+    if config.model:  # the believed parameters are in "plants"; their uncertainty here
+        what["model"] = {p: config.model[p].model_dump() for p in sorted(config.model)}
     return ClosedLoopSpec(
         name=f"{scenario.name}.wncsca_model",
         time_unit=scenario.time_unit,

@@ -8,7 +8,8 @@ when a scenario has no agent node.
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+import math
+from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -21,6 +22,8 @@ __all__ = [
     "SetpointTest",
     "ModesConfig",
     "LinksConfig",
+    "ParameterUncertainty",
+    "PlantBelief",
     "WncscaConfig",
 ]
 
@@ -109,6 +112,54 @@ class LinksConfig(BaseModel):
     )
     h_hi: float = Field(default=0.2, gt=0, description="longest update period scanned, time units")
     n_grid: int = Field(default=200, ge=10, le=5000, description="periods scanned on (d, h_hi]")
+
+
+class ParameterUncertainty(BaseModel):
+    """How well the agent knows one parameter of its model: a relative standard deviation (the
+    belief is normal about its value) or an interval (the parameter lies in ``[low, high]``, in
+    the parameter's own unit). Exactly one of the two."""
+
+    model_config = _STRICT
+
+    rel_sd: float | None = Field(
+        default=None,
+        gt=0,
+        lt=1,
+        description="relative standard deviation of the believed value (0.1: 10 %), normal",
+    )
+    interval: tuple[float, float] | None = Field(
+        default=None,
+        description="[low, high]: the parameter lies in it (its own unit), with the believed "
+        "value inside",
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> ParameterUncertainty:
+        if (self.rel_sd is None) == (self.interval is None):
+            raise ValueError("give exactly one of rel_sd or interval")
+        if self.interval is not None:
+            low, high = self.interval
+            if not (math.isfinite(low) and math.isfinite(high) and low < high):
+                raise ValueError(f"interval: low ({low}) must be below high ({high}), both finite")
+        return self
+
+
+class PlantBelief(BaseModel):
+    """What the agent believes of one plant it judges: its model's parameters (those not named
+    are the plant node's own) and how uncertain they are. The true plant node keeps its own
+    parameters; the agent judges every trial on this model."""
+
+    model_config = _STRICT
+
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="parameter -> the value the agent believes, by the plant model's symbols "
+        "(not named: the plant node's own value)",
+    )
+    uncertainty: dict[str, ParameterUncertainty] = Field(
+        default_factory=dict,
+        description="parameter -> how well the agent knows it (rel_sd or interval)",
+    )
 
 
 class WncscaConfig(BaseModel):
@@ -207,6 +258,11 @@ class WncscaConfig(BaseModel):
         default=None,
         description="govern the update period of the scenario's links (controllers exchanging "
         "estimates) by the spectral-radius analysis; their loops are then not simulated",
+    )
+    model: dict[str, PlantBelief] = Field(
+        default_factory=dict,
+        description="plant node -> the agent's own model of it (its believed parameters and "
+        "their uncertainty); a plant not named: the plant node's own parameters, known exactly",
     )
 
     @model_validator(mode="after")

@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from agents.wncsca.config import WncscaConfig
+from agents.wncsca.config import ParameterUncertainty, WncscaConfig
 from agents.wncsca.links import LinkGroup
 from controllers.feedforward import SteadyStateFeedforward
 from core.record import RunRecord
@@ -54,12 +54,18 @@ class JudgedPlant:
 
     name: str
     model: Any
-    """The plant model (``plants.registry``: ``rhs``, ``outputs``, ``linearize``, ...)."""
+    """The plant model (``plants.registry``: ``rhs``, ``outputs``, ``linearize``, ...), built
+    with the parameters the agent believes (:attr:`params`), not the plant node's."""
     x0: Mapping[str, float]
     u0: Mapping[str, float]
     max_step: float
     monitor_period: float
     noise: Mapping[str, float] = field(default_factory=dict)
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """The model's parameters as the agent believes them (its ``model:``; by default the plant
+    node's own)."""
+    uncertainty: Mapping[str, ParameterUncertainty] = field(default_factory=dict)
+    """Parameter -> how well the agent knows it (none named: known exactly)."""
 
 
 @dataclass(frozen=True)
