@@ -33,6 +33,13 @@ class SteadyStateFeedforward:
         self._output_of_loop = dict(output_of_loop)
         self._index = plant.input_names.index(input_name)
 
+    def on(self, plant: Any) -> SteadyStateFeedforward:
+        """The same feedforward (loops, input) on another model of the plant (other parameters:
+        the agent's draws of its model, :mod:`agents.wncsca.uncertainty`)."""
+        return SteadyStateFeedforward(
+            plant, self._output_of_loop, plant.input_names[self._index]
+        )
+
     def u_bar(self, setpoints: Mapping[str, float]) -> float:
         """Feedforward for the loops' current set points (loop name -> value)."""
         y_bar = {self._output_of_loop[loop]: float(v) for loop, v in setpoints.items()}

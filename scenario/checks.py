@@ -284,6 +284,12 @@ def check_agent_model(s: ScenarioSchema) -> None:
                 if param not in s.plant(plant).params:
                     known = sorted(s.plant(plant).params)
                     raise ValueError(f"{at}.params.{param}: not a parameter of the plant ({known})")
+        stated = sorted(p for p, belief in cfg.model.items() if belief.uncertainty)
+        if stated and cfg.method != "chance":
+            raise ValueError(
+                f"nodes.{name}.model.{stated[0]}.uncertainty: the {cfg.method} method takes the "
+                "model as exact; the chance method covers its uncertainty (method: chance)"
+            )
         try:
             believed = s.believed(cfg)
         except ValueError as err:

@@ -753,9 +753,10 @@ class ScenarioSchema(BaseModel):
         )
 
     def trial(self, trial: Trial) -> Self:
-        """This agent model (:meth:`agent_model`) with one trial's periods, delays, steps, end
-        and delay traces (only those fields replaced: the trial's values are checked by the
-        agent, :meth:`agents.wncsca.model.LoopModel.evaluate`)."""
+        """This agent model (:meth:`agent_model`) with one trial's periods, delays, steps, end,
+        delay traces and plant parameters (only those fields replaced: the trial's values are
+        checked by the agent, :meth:`agents.wncsca.model.LoopModel.evaluate`, and its draws of
+        parameters by :mod:`agents.wncsca.uncertainty`)."""
         loops = {
             name: lp.model_copy(update={"tau_s": trial.periods[name], "tau_d": trial.delays[name]})
             for name, lp in self.loops.items()
@@ -771,11 +772,16 @@ class ScenarioSchema(BaseModel):
             ],
             "end_time": trial.end_time,
         }
+        nodes = dict(self.nodes)
         if trial.traces is not None:
-            network = NetworkNodeConfig.model_validate(
+            nodes[AGENT_NETWORK] = NetworkNodeConfig.model_validate(
                 {"kind": "network", "traces": dict(trial.traces)}
             )
-            update["nodes"] = {**self.nodes, AGENT_NETWORK: network}
+        for plant, params in sorted((trial.params or {}).items()):  # a draw of the model
+            cfg = self.plant(plant)
+            nodes[plant] = cfg.model_copy(update={"params": {**cfg.params, **params}})
+        if trial.traces is not None or trial.params:
+            update["nodes"] = nodes
         return self.model_copy(update=update)
 
     def with_loops(

@@ -285,6 +285,7 @@ def closed_loop_spec(scenario: ScenarioSchema, config: WncscaConfig) -> ClosedLo
             monitor_period=cfg.monitor_period,
             noise=dict(cfg.noise),
             params=dict(cfg.params),
+            kind=cfg.model,
             uncertainty=dict(config.model[p].uncertainty) if p in config.model else {},
         )
     what = {  # everything a trial's outcome depends on but its periods and delays

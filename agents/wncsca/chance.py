@@ -49,6 +49,7 @@ linear model overshoots 0-5 points more, depending on the step phase.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -62,6 +63,8 @@ from numpy.typing import NDArray
 from agents.wncsca.fast import LinearPredictor, phi1
 from agents.wncsca.fast.predictor import PlantData
 from agents.wncsca.model import Evaluation, LoopModel
+from agents.wncsca.spec import JudgedPlant
+from agents.wncsca.uncertainty import ModelDraws, model_draws, plant_model
 from controllers.pi import pi_update
 from core.time import TICKS_PER_UNIT, to_ticks, to_units
 from gateway import distribution
@@ -185,6 +188,22 @@ class _Windows:
         return out
 
 
+def _drawn(data: PlantData, plant: JudgedPlant, params: Mapping[str, float]) -> PlantData:
+    """The plant data of ``data`` with ``params`` replacing some of its model's parameters (the
+    loops' feedforwards on that model too: the controllers know the plant they run on, as the
+    bus's controller nodes do)."""
+    if not params:
+        return data
+    model = plant_model(plant, params)
+    return dataclasses.replace(
+        data,
+        model=model,
+        feedforward={n: None if ff is None else ff.on(model) for n, ff in data.feedforward.items()},
+        _ubar={},
+        _lin={},
+    )
+
+
 class LinearMonteCarlo:
     """The agent's test on the linearised loops over ``realizations`` random realizations (see
     the module docstring).
@@ -196,9 +215,13 @@ class LinearMonteCarlo:
     laws : mapping
         Loop -> :class:`LoopLaw` (default: constant delay, no loss).
     realizations : int
-        Realizations ``R``.
+        Realizations ``R`` (per corner of a robust model: :attr:`rows` in all).
     seed : int
         Seed of the common random numbers.
+    draws : ModelDraws, optional
+        The model's parameter sets (:mod:`agents.wncsca.uncertainty`): realization ``r`` runs
+        on set ``r mod M`` (probability), or each corner on a block of ``R`` realizations of
+        its own (robust: :attr:`blocks`). Default: the model itself.
 
     Raises
     ------
@@ -212,10 +235,20 @@ class LinearMonteCarlo:
         laws: Mapping[str, LoopLaw],
         realizations: int,
         seed: int,
+        draws: ModelDraws | None = None,
     ) -> None:
         lin = LinearPredictor(model, {})
         self.loops = lin.loops
-        self.R = realizations
+        self.draws = draws or ModelDraws("exact", ({},), {})
+        M = len(self.draws.sets)
+        if self.draws.mode == "robust":
+            self.R = realizations * M
+            self.blocks = [slice(m * realizations, (m + 1) * realizations) for m in range(M)]
+            self.draw_of = np.repeat(np.arange(M), realizations)
+        else:
+            self.R = realizations
+            self.blocks = [slice(0, realizations)]
+            self.draw_of = np.arange(realizations) % M
         self.laws = {n: laws.get(n, LoopLaw()) for n in self.loops}
         self.pi = lin.laws
         self.end = to_units(lin.end)
@@ -244,7 +277,11 @@ class LinearMonteCarlo:
             sp[loop] = value
             stage_sp.append(dict(sp))
         n_loops = len(self.loops)
-        self._linearise_stages(plants, offsets, nx, nu, stage_sp)
+        self.n_stages = len(stage_sp)
+        spec = model.trials.spec
+        for m, params in enumerate(self.draws.sets):
+            drawn = [_drawn(p, spec.plants[p.name], params.get(p.name, {})) for p in plants]
+            self._linearise_stages(drawn, offsets, nx, nu, stage_sp, m * self.n_stages, M)
         self.initial = np.array([lin.initial[n] for n in self.loops])
         rng = np.random.default_rng(seed)
         self.phase_j = rng.integers(0, PHASES, size=(len(self.steps), self.R))
@@ -265,22 +302,27 @@ class LinearMonteCarlo:
         nx: int,
         nu: int,
         stage_sp: list[dict[str, float]],
+        first: int = 0,
+        sets: int = 1,
     ) -> None:
         """Each stretch of the test on the plants linearised at the equilibrium holding its set
         points (as the fast method does), switched in at the step, in modal form: ``lam``,
         ``V``, ``Vi``, ``Vi B``, ``Vi c``, ``Cy V``, the outputs' offsets and the feedforwards
-        per stage."""
+        per stage; the stages of parameter set ``m`` are ``m S .. m S + S - 1`` (``first``)."""
         n_loops = len(self.loops)
         S = len(stage_sp)
-        self.ubar = np.zeros((S, n_loops))
-        self.lam = np.zeros((S, nx), dtype=complex)
-        self.V = np.zeros((S, nx, nx), dtype=complex)
-        self.Vi = np.zeros((S, nx, nx), dtype=complex)
-        self.ViB = np.zeros((S, nx, nu), dtype=complex)
-        self.Vic = np.zeros((S, nx), dtype=complex)
-        self.CyV = np.zeros((S, n_loops, nx), dtype=complex)
-        self.y0 = np.zeros((S, n_loops))
-        for k, values in enumerate(stage_sp):
+        if first == 0:
+            n = S * sets
+            self.ubar = np.zeros((n, n_loops))
+            self.lam = np.zeros((n, nx), dtype=complex)
+            self.V = np.zeros((n, nx, nx), dtype=complex)
+            self.Vi = np.zeros((n, nx, nx), dtype=complex)
+            self.ViB = np.zeros((n, nx, nu), dtype=complex)
+            self.Vic = np.zeros((n, nx), dtype=complex)
+            self.CyV = np.zeros((n, n_loops, nx), dtype=complex)
+            self.y0 = np.zeros((n, n_loops))
+        for k_stage, values in enumerate(stage_sp):
+            k = first + k_stage
             A = np.zeros((nx, nx))
             B = np.zeros((nx, nu))
             c = np.zeros(nx)
@@ -371,8 +413,9 @@ class LinearMonteCarlo:
     ) -> NDArray[np.float64]:
         R, loops = self.R, self.loops
         rows = np.arange(R)
-        stage = np.zeros(R, dtype=np.int64)
-        z = np.tile(self.Vi[0] @ self.x0, (R, 1))
+        stage = self.draw_of * self.n_stages  # each realization's parameter set, first stage
+        z0 = np.array([self.Vi[m * self.n_stages] @ self.x0 for m in range(len(self.draws.sets))])
+        z = z0[self.draw_of]
         u = np.tile(self.u0, (R, 1))
 
         w = self._forcing(stage, u)
@@ -499,6 +542,11 @@ class LinearMonteCarlo:
         u[:, col] = np.where(mask, out, u[:, col])
         return u
 
+    def params_of(self, r: int) -> dict[str, dict[str, float]]:
+        """The parameters realization ``r`` replaces in the model (empty: the model's own)."""
+        drawn = self.draws.sets[int(self.draw_of[r])]
+        return {p: dict(v) for p, v in drawn.items()}
+
     def traces(
         self, periods: Mapping[str, float], delays: Mapping[str, float], r: int
     ) -> tuple[dict[str, list[float | None]], dict[tuple[int, str], int]]:
@@ -546,18 +594,20 @@ class ChanceModel:
         self.config = cfg
         self.loops = self.base.loops
         self.benchmark = dict(self.base.benchmark)
-        self.linear = LinearMonteCarlo(self.base, self.laws, cfg.realizations, self.seed)
-        self.k_max = risk_index(cfg.realizations, cfg.confidence)
+        self.draws = model_draws(self.base.trials.spec, cfg, self.seed)
+        self.linear = LinearMonteCarlo(
+            self.base, self.laws, cfg.realizations, self.seed, self.draws
+        )
+        self.k_max = risk_index(cfg.realizations, cfg.confidence)  # per block of realizations
         self.offsets = {n: self.offsets.get(n, 0.0) for n in self.loops}
         laws = {
             n: [list(law.probabilities), list(law.delays), law.loss]
             for n, law in sorted(self.laws.items())
         }
-        self.fingerprint = hashlib.sha256(
-            json.dumps(
-                [self.base.fingerprint, laws, cfg.realizations, cfg.confidence, self.seed]
-            ).encode()
-        ).hexdigest()[:16]
+        what: list[Any] = [self.base.fingerprint, laws, cfg.realizations, cfg.confidence, self.seed]
+        if not self.draws.exact:
+            what.append(self.draws.summary())
+        self.fingerprint = hashlib.sha256(json.dumps(what).encode()).hexdigest()[:16]
 
     @property
     def simulations(self) -> int:
@@ -584,24 +634,42 @@ class ChanceModel:
         for a loop whose period exceeds its cap in :attr:`period_caps`: the jitter margin)."""
         per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
         dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
-        os = np.sort(self.samples(per, dly), axis=0)
-        risk = {n: float(os[self.linear.R - 1 - self.k_max, i]) for i, n in enumerate(self.loops)}
+        risk = self._risk(self.samples(per, dly))[0]
         for n, cap in self.period_caps.items():
             if per[n] > cap:
                 risk[n] = math.inf  # outside the jitter margin: no guarantee of stability
         return Evaluation(per, dly, risk, ())
 
+    def _risk(self, samples: NDArray[np.float64]) -> tuple[dict[str, float], dict[str, int]]:
+        """Each loop's risk overshoot, the ``(R - k_max)``-th smallest realization of its
+        block, at the worst block (one block but for a robust model: one per corner), and the
+        block it is at."""
+        risk: dict[str, float] = {}
+        worst: dict[str, int] = {}
+        for b, rows in enumerate(self.linear.blocks):
+            os = np.sort(samples[rows], axis=0)
+            for i, n in enumerate(self.loops):
+                v = float(os[len(os) - 1 - self.k_max, i])
+                if n not in risk or v > risk[n]:
+                    risk[n], worst[n] = v, b
+        return risk, worst
+
     def probability(
         self, periods: Mapping[str, float], delays: Mapping[str, float]
     ) -> dict[str, dict[str, float]]:
-        """Per loop: the estimated ``P(overshoot <= limit)`` and its 95 % interval."""
-        os = self.samples(periods, delays)
+        """Per loop: the estimated ``P(overshoot <= limit)`` and its 95 % interval (robust: at
+        the worst corner)."""
+        samples = self.samples(periods, delays)
         limit = self.config.overshoot_limit
-        out = {}
-        for i, n in enumerate(self.loops):
-            within = int(np.sum(os[:, i] <= limit))
-            lo, hi = probability_interval(within, len(os))
-            out[n] = {"p": within / len(os), "low": lo, "high": hi}
+        out: dict[str, dict[str, float]] = {}
+        for rows in self.linear.blocks:
+            os = samples[rows]
+            for i, n in enumerate(self.loops):
+                within = int(np.sum(os[:, i] <= limit))
+                if n in out and within / len(os) >= out[n]["p"]:
+                    continue
+                lo, hi = probability_interval(within, len(os))
+                out[n] = {"p": within / len(os), "low": lo, "high": hi}
         return out
 
     def check(self, periods: Mapping[str, float], delays: Mapping[str, float]) -> dict[str, Any]:
@@ -616,19 +684,22 @@ class ChanceModel:
         per = {n: float(periods.get(n, self.benchmark[n])) for n in self.loops}
         dly = {n: float(delays.get(n, 0.0)) for n in self.loops}
         linear = self.samples(per, dly) - np.array([self.offsets[n] for n in self.loops])
-        R = self.linear.R
+        _, worst = self._risk(linear)
         per_loop = max(1, self.config.checks // len(self.loops))
-        rank = R - 1 - self.k_max
-        lo = max(0, min(rank - per_loop // 2, R - per_loop))
-        chosen = {
-            n: np.argsort(linear[:, i], kind="stable")[lo : lo + per_loop]
-            for i, n in enumerate(self.loops)
-        }
+        chosen = {}
+        for i, n in enumerate(self.loops):
+            block = self.linear.blocks[worst[n]]  # the corner that sets the risk (robust)
+            R = block.stop - block.start
+            rank = R - 1 - self.k_max
+            lo = max(0, min(rank - per_loop // 2, R - per_loop))
+            order = np.argsort(linear[block, i], kind="stable")
+            chosen[n] = block.start + order[lo : lo + per_loop]
         replays = sorted({int(r) for rows in chosen.values() for r in rows})
         nonlinear: dict[int, list[float]] = {}
         for r in replays:
             traces, phases = self.linear.traces(per, dly, r)
-            rec = self.base.trials.run_replay(per, dly, traces, phases, PHASES)
+            params = self.linear.params_of(r) or None
+            rec = self.base.trials.run_replay(per, dly, traces, phases, PHASES, params)
             nonlinear[r] = self.base.overshoots_of(rec)
             self.base.simulations += 1
         for i, n in enumerate(self.loops):

@@ -124,8 +124,9 @@ class ParameterUncertainty(BaseModel):
     rel_sd: float | None = Field(
         default=None,
         gt=0,
-        lt=1,
-        description="relative standard deviation of the believed value (0.1: 10 %), normal",
+        le=0.3,
+        description="relative standard deviation of the believed value (0.1: 10 %), normal, "
+        "drawn within +-2.5 sd (beyond 30 %, state an interval)",
     )
     interval: tuple[float, float] | None = Field(
         default=None,
@@ -263,6 +264,21 @@ class WncscaConfig(BaseModel):
         default_factory=dict,
         description="plant node -> the agent's own model of it (its believed parameters and "
         "their uncertainty); a plant not named: the plant node's own parameters, known exactly",
+    )
+    uncertainty: Literal["probability", "robust"] = Field(
+        default="probability",
+        description="chance method, how the model's uncertainty enters the guarantee: "
+        "probability: the parameters drawn per realization (beside delays, losses and phases), "
+        "so P(overshoot <= limit) covers model error; robust: the guarantee holds at every "
+        "corner of the parameters' intervals (rel_sd: +-1.96 sd), a bound rather than a "
+        "probability over the parameters",
+    )
+    model_draws: int = Field(
+        default=40,
+        ge=2,
+        le=1000,
+        description="chance method, uncertainty probability: parameter sets drawn from the "
+        "model's uncertainty (realization r uses set r mod model_draws)",
     )
 
     @model_validator(mode="after")

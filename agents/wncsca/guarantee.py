@@ -156,6 +156,7 @@ def chance_periods(model: ChanceModel, delays: Mapping[str, float]) -> Assignmen
         "confidence": cfg.confidence,
         "realizations": model.linear.R,
         "exceedances_allowed": model.k_max,
+        "model": model.draws.summary(),
         "probability": model.probability(result.periods, delays),
         "offsets": dict(model.offsets),
         "checks": checks,
@@ -218,6 +219,8 @@ def judge_by_risk(
             f"(95 % CI {pr['low']:.3f}-{pr['high']:.3f}) at period "
             f"{result.periods[n]:g} ({what})"
         )
+    if not model.draws.exact:
+        lines.append(model.draws.describe())
     result.extra["jitter_margin"] = margins
     unstable = [n for n in base.loops if n in margins and not margins[n]["ok"]]
     lines += [

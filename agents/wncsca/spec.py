@@ -66,6 +66,9 @@ class JudgedPlant:
     node's own)."""
     uncertainty: Mapping[str, ParameterUncertainty] = field(default_factory=dict)
     """Parameter -> how well the agent knows it (none named: known exactly)."""
+    kind: str = ""
+    """The plant model's name in ``plants.registry.MODELS`` (to build it with other
+    parameters)."""
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,9 @@ class Trial:
     steps: tuple[Step, ...]
     end_time: float
     traces: Mapping[str, list[float | None]] | None = None
+    params: Mapping[str, Mapping[str, float]] | None = None
+    """Plant -> parameters that replace the model's for this trial (a draw of the agent's
+    model uncertainty, :mod:`agents.wncsca.uncertainty`)."""
 
 
 class Simulator(Protocol):

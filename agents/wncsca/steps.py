@@ -12,6 +12,9 @@ non-linear model before it is let through:
 * each of ``realizations`` trials replays its own delay sequence drawn from the accepted
   proposal's delay distributions (:class:`agents.wncsca.chance.LoopLaw`: the shape located at
   the loop's mean delay, losses held), seeded from the scenario seed, the loop and the value;
+  trial ``r`` runs on the model's parameter set ``r mod M`` of its stated uncertainty
+  (:func:`agents.wncsca.uncertainty.model_draws`; robust: its corners in turn), the model
+  itself when none is stated;
 * the candidates are tried in order: the control periods now in force, then the stepped loop
   at its benchmark period, then every loop at its benchmark period. The first candidate whose
   share of trials within the limit is at least ``confidence`` (at most ``floor((1 - confidence)
@@ -36,6 +39,7 @@ import numpy as np
 
 from agents.wncsca.chance import PHASES, LoopLaw, probability_interval, risk_index
 from agents.wncsca.model import LoopModel
+from agents.wncsca.uncertainty import model_draws
 from core.record import loop_metrics
 from core.time import to_ticks, to_units
 
@@ -100,6 +104,7 @@ def judge_step(
     u_delay = {lp: rng.random(100_000) for lp in sorted(model.loops)}
     u_loss = {lp: rng.random(100_000) for lp in sorted(model.loops)}
     phases = rng.integers(0, PHASES, size=n)
+    draws = model_draws(model.trials.spec, cfg, seed)
     tried: list[dict[str, Any]] = []
     last: tuple[dict[str, float], float, tuple[float, float], float] | None = None
     for periods in unique:
@@ -110,7 +115,8 @@ def judge_step(
             steps = [(0.0, name, float(v)) for name, v in sorted(setpoints.items())]
             steps.append((t_step, loop, float(value)))
             traces = _traces(laws, delays, periods, t_step + settle, u_delay, u_loss, r)
-            rec = model.trials.run_steps(periods, delays, steps, t_step + settle, traces)
+            params = draws.sets[r % len(draws.sets)] or None  # the model's draws in turn
+            rec = model.trials.run_steps(periods, delays, steps, t_step + settle, traces, params)
             model.simulations += 1
             overshoots.append(_step_overshoot(rec, loop, t_step))
         os = np.asarray(overshoots)

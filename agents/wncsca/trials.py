@@ -37,6 +37,7 @@ class Trials:
         steps: tuple[Step, ...],
         end_time: float,
         traces: Mapping[str, list[float | None]] | None = None,
+        params: Mapping[str, Mapping[str, float]] | None = None,
     ) -> Trial:
         return Trial(
             periods={n: float(periods.get(n, self.benchmark[n])) for n in self.loops},
@@ -44,6 +45,7 @@ class Trials:
             steps=steps,
             end_time=float(end_time),
             traces=traces,
+            params=params,
         )
 
     def _moved(self, step: Step, periods: Mapping[str, float], k: int, n: int) -> Step:
@@ -74,14 +76,16 @@ class Trials:
         steps: list[tuple[float, str, float]],
         end_time: float,
         traces: Mapping[str, list[float | None]] | None = None,
+        params: Mapping[str, Mapping[str, float]] | None = None,
     ) -> RunRecord:
         """One trial with these set-point ``steps`` (``(t, loop, value)``, time units) instead
         of the test's, run to ``end_time``, with each loop's sensor-path delays replayed from
-        ``traces`` (default: the constant ``delays``). The steps keep the test's first step's
-        lead (``announce``)."""
+        ``traces`` (default: the constant ``delays``) and the plants' parameters replaced by
+        ``params`` (default: the model's). The steps keep the test's first step's lead
+        (``announce``)."""
         lead = self.spec.steps[0].announce
         judged = tuple(Step(float(t), loop, float(v), lead) for t, loop, v in steps)
-        return self._simulate(self._trial(periods, delays, judged, end_time, traces))
+        return self._simulate(self._trial(periods, delays, judged, end_time, traces, params))
 
     def run_replay(
         self,
@@ -90,14 +94,16 @@ class Trials:
         traces: Mapping[str, list[float | None]],
         phases: Mapping[tuple[int, str], int],
         denominator: int,
+        params: Mapping[str, Mapping[str, float]] | None = None,
     ) -> RunRecord:
         """One trial of the test with each loop's sensor-path delays replayed from ``traces``
         (loop -> delay of each sample, ``None``: lost) and the step at ``(tick, loop)`` moved to
         ``phases[...] / denominator`` of its loop's period after a sampling instant (the
-        realizations of :mod:`agents.wncsca.chance`)."""
+        realizations of :mod:`agents.wncsca.chance`), the plants' parameters replaced by
+        ``params`` (a draw of the model's uncertainty; default the model's own)."""
         steps = []
         for step in self.spec.steps:
             j = phases.get((to_ticks(step.t), step.loop))
             steps.append(step if j is None else self._moved(step, periods, j, denominator))
-        trial = self._trial(periods, delays, tuple(steps), self.spec.end_time, traces)
+        trial = self._trial(periods, delays, tuple(steps), self.spec.end_time, traces, params)
         return self._simulate(trial)

@@ -1,0 +1,160 @@
+"""The agent's model uncertainty as parameter sets its guarantee covers (issue 35, item 2).
+
+The agent's model (``model:`` of the agent node) believes a value of each plant parameter and,
+for some, states how well it knows it (:class:`~agents.wncsca.config.ParameterUncertainty`):
+
+* ``rel_sd``: the true value is normal about the believed one, relative standard deviation
+  ``rel_sd``, drawn within +-2.5 sd (a bounded belief: no draw flips a coefficient's sign);
+* ``interval``: the true value lies in ``[low, high]``, drawn uniformly.
+
+:func:`model_draws` turns them into the parameter sets the chance method judges:
+
+* ``uncertainty: probability``: ``model_draws`` sets drawn from the beliefs (independent
+  parameters, a seeded generator of the agent's own); realization ``r`` of the Monte Carlo runs
+  on set ``r mod M``, so ``P(overshoot <= limit)`` is over delays, losses, phases *and* the
+  model's error;
+* ``uncertainty: robust``: every corner of the parameters' box (``rel_sd`` read as
+  ``+-1.96 sd``, its 95 % interval), each judged over all the realizations; the guarantee must
+  hold at the worst corner (the overshoot is monotone in a parameter over a narrow interval in
+  the seeds' plants; a non-monotone one would need the box's interior too, which the corners do
+  not claim).
+
+Without any stated uncertainty there is one set, the model itself, and the chance method is
+today's, bit for bit.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from agents.wncsca.config import ParameterUncertainty, WncscaConfig
+from agents.wncsca.spec import ClosedLoopSpec, JudgedPlant
+from plants import registry
+
+__all__ = ["ModelDraws", "model_draws", "plant_model", "interval_of", "TRUNCATE_SD", "CORNER_SD"]
+
+TRUNCATE_SD = 2.5
+"""A ``rel_sd`` belief is drawn within this many standard deviations of the believed value."""
+
+CORNER_SD = 1.96
+"""The robust method reads a ``rel_sd`` belief as this many standard deviations either side."""
+
+ParamSet = Mapping[str, Mapping[str, float]]
+"""Plant -> parameter -> value: the parameters a draw replaces (the others are the model's)."""
+
+
+@dataclass(frozen=True)
+class ModelDraws:
+    """The parameter sets a guarantee covers (see the module docstring).
+
+    Attributes
+    ----------
+    mode : {"exact", "probability", "robust"}
+        ``exact``: no stated uncertainty, one set (the model's own).
+    sets : tuple of mappings
+        Plant -> parameter -> value of each set (empty mappings for ``exact``).
+    stated : mapping
+        Plant -> parameter -> the stated uncertainty, as configured (for the decisions).
+    """
+
+    mode: str
+    sets: tuple[ParamSet, ...]
+    stated: Mapping[str, Mapping[str, dict[str, Any]]]
+
+    @property
+    def exact(self) -> bool:
+        return self.mode == "exact"
+
+    def summary(self) -> dict[str, Any]:
+        """What a decision states of the uncertainty it assumed."""
+        return {"mode": self.mode, "sets": len(self.sets), "stated": _plain(self.stated)}
+
+    def describe(self) -> str:
+        """One line for a decision's reasons."""
+        if self.exact:
+            return "model: the agent's parameters taken as exact (no uncertainty stated)"
+        parts = []
+        for plant, params in sorted(self.stated.items()):
+            for name, spread in sorted(params.items()):
+                if spread.get("rel_sd") is not None:
+                    parts.append(f"{plant}.{name} +-{100 * spread['rel_sd']:.3g} % (1 sd)")
+                else:
+                    low, high = spread["interval"]
+                    parts.append(f"{plant}.{name} in [{low:g}, {high:g}]")
+        how = (
+            f"over {len(self.sets)} draws of the model"
+            if self.mode == "probability"
+            else f"at the worst of {len(self.sets)} corners"
+        )
+        return f"model uncertainty {', '.join(parts)}: covered {how}"
+
+
+def _plain(stated: Mapping[str, Mapping[str, dict[str, Any]]]) -> dict[str, Any]:
+    return {p: {n: dict(v) for n, v in params.items()} for p, params in stated.items()}
+
+
+def interval_of(value: float, spread: ParameterUncertainty) -> tuple[float, float]:
+    """The interval the robust method spans for a believed ``value``."""
+    if spread.interval is not None:
+        return spread.interval
+    assert spread.rel_sd is not None
+    half = CORNER_SD * spread.rel_sd * abs(value)
+    return value - half, value + half
+
+
+def model_draws(spec: ClosedLoopSpec, config: WncscaConfig, seed: int) -> ModelDraws:
+    """The parameter sets of ``spec``'s stated uncertainty under ``config`` (module docstring),
+    drawn from a generator seeded by ``seed`` (the agent's)."""
+    uncertain = [
+        (p, name, float(plant.params[name]), spread)
+        for p, plant in sorted(spec.plants.items())
+        for name, spread in sorted(plant.uncertainty.items())
+    ]
+    stated: dict[str, dict[str, dict[str, Any]]] = {}
+    for p, name, _, spread in uncertain:
+        stated.setdefault(p, {})[name] = spread.model_dump(exclude_none=True)
+    if not uncertain:
+        return ModelDraws("exact", ({},), stated)
+    if config.uncertainty == "robust":
+        boxes = [interval_of(value, spread) for _, _, value, spread in uncertain]
+        sets = tuple(_set(uncertain, corner) for corner in itertools.product(*boxes))
+        return ModelDraws("robust", sets, stated)
+    rng = np.random.default_rng([seed, 35, 2])
+    columns = []
+    for _, _, value, spread in uncertain:
+        if spread.interval is not None:
+            columns.append(rng.uniform(*spread.interval, size=config.model_draws))
+        else:
+            assert spread.rel_sd is not None
+            z = _truncated_normal(rng, config.model_draws)
+            columns.append(value * (1.0 + spread.rel_sd * z))
+    draws = np.column_stack(columns)
+    return ModelDraws("probability", tuple(_set(uncertain, row) for row in draws), stated)
+
+
+def _truncated_normal(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` standard normal draws within +-:data:`TRUNCATE_SD` (rejection, in order)."""
+    out: list[float] = []
+    while len(out) < n:
+        z = rng.standard_normal(n)
+        out.extend(float(v) for v in z if abs(v) <= TRUNCATE_SD)
+    return np.array(out[:n])
+
+
+def _set(uncertain: list[tuple[str, str, float, ParameterUncertainty]], values: Any) -> ParamSet:
+    out: dict[str, dict[str, float]] = {}
+    for (plant, name, _, _), v in zip(uncertain, values, strict=True):
+        out.setdefault(plant, {})[name] = float(v)
+    return out
+
+
+def plant_model(plant: JudgedPlant, params: Mapping[str, float]) -> Any:
+    """``plant``'s model with ``params`` replacing some of its parameters."""
+    if not params:
+        return plant.model
+    return registry.build(plant.kind, {**plant.params, **params})
