@@ -36,9 +36,7 @@ class SteadyStateFeedforward:
     def on(self, plant: Any) -> SteadyStateFeedforward:
         """The same feedforward (loops, input) on another model of the plant (other parameters:
         the agent's draws of its model, :mod:`agents.wncsca.uncertainty`)."""
-        return SteadyStateFeedforward(
-            plant, self._output_of_loop, plant.input_names[self._index]
-        )
+        return SteadyStateFeedforward(plant, self._output_of_loop, plant.input_names[self._index])
 
     def u_bar(self, setpoints: Mapping[str, float]) -> float:
         """Feedforward for the loops' current set points (loop name -> value)."""
