@@ -405,6 +405,20 @@ class SamplingPeriod(BaseModel):
     period: int = Field(gt=0, strict=True, description="sampling period, ticks")
 
 
+class Drift(BaseModel):
+    """A change of one of a plant's physical parameters (``plant/<p>/drift``): from the
+    operator's schedule (``drifts:``) or ``wncs inject``. The true plant moves ``param`` from its
+    value now to ``value``, in ``steps`` equal steps over ``over`` ticks (0: at once), as fouling
+    or wear would; the agent's model is not told."""
+
+    model_config = _FROZEN
+
+    param: str = Field(min_length=1, max_length=64)
+    value: Finite = Field(strict=True)
+    over: int = Field(default=0, ge=0, strict=True, description="ramp duration, ticks")
+    steps: int = Field(default=1, ge=1, le=10_000, strict=True, description="ramp steps")
+
+
 class ModeRequest(BaseModel):
     """An operating-mode change for the coordination agent (``ops/mode``)."""
 
@@ -416,7 +430,7 @@ class ModeRequest(BaseModel):
 class InjectRequest(BaseModel):
     """An external input for the clock to stamp into the run (``ops/inject``): exactly one of a
     network reconfiguration (``event``), an operating-mode request (``mode``) or a set-point
-    request (``setpoint``)."""
+    request (``setpoint``) or a plant parameter drift (``drift``)."""
 
     model_config = _FROZEN
 
@@ -428,12 +442,16 @@ class InjectRequest(BaseModel):
     setpoint: dict[str, Any] | None = Field(
         default=None, description="{loop: name, value: number}, on ops/setpoint/<loop>"
     )
+    drift: dict[str, Any] | None = Field(
+        default=None,
+        description="{plant: name, param, value, over (ticks), steps}, on plant/<p>/drift",
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> InjectRequest:
-        given = [n for n in ("event", "mode", "setpoint") if getattr(self, n) is not None]
+        given = [n for n in ("event", "mode", "setpoint", "drift") if getattr(self, n) is not None]
         if len(given) != 1:
-            raise ValueError(f"exactly one of event, mode, setpoint; got {given or 'none'}")
+            raise ValueError(f"exactly one of event, mode, setpoint, drift; got {given or 'none'}")
         return self
 
 

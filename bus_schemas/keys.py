@@ -44,6 +44,7 @@ __all__ = [
     "inject",
     "network_events",
     "sampling",
+    "drift",
     "loop_setpoint",
     "ops_mode",
     "wncsca_decision",
@@ -246,6 +247,11 @@ def setpoint(loop: str) -> str:
 
 def setpoint_all() -> str:
     return "ops/setpoint/*"
+
+
+def drift(plant: str) -> str:
+    """A change of the plant's physical parameters (the true plant's, not a model's)."""
+    return f"plant/{check_name(plant, 'plant')}/drift"
 
 
 def sampling(plant: str, signal: str) -> str:

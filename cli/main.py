@@ -5,7 +5,7 @@
 ``wncs router --scenario S --listen EP --out DIR``  a standalone router of a multi-host run
 ``wncs report DIR``                    redraw a run's plots and print its figures
 ``wncs analyze SCENARIO --out DIR``    the coordination agent's analysis alone, without the bus
-``wncs inject DIR EVENT [KEY=VALUE ...]``  a reconfiguration, mode or set point into a live run
+``wncs inject DIR EVENT [KEY=VALUE ...]``  a reconfiguration, mode, set point or drift, live
 ``wncs dashboard DIR``                 watch a live run in the browser, act on it, replay it
 ``wncs assess DATA --primary COL ...``  Harris index and cascade opportunities of a loop (seed 004)
 ``wncs validate SCENARIO ...``         check scenario files without running them

@@ -4,6 +4,14 @@ It samples each sensor at its loop's ``tau_s`` (``plant/<p>/sensor/<s>``), appli
 receives (``plant/<p>/actuator/<i>``) from their time on (zero-order hold), and records its true
 state on a monitoring grid (``plant/<p>/state``, sent in batches when it samples and at the end).
 
+The true plant's physical parameters may drift (``plant/<p>/drift``, from the operator's
+``drifts:`` schedule or ``wncs inject``): a :class:`~bus_schemas.Drift` moves one parameter from
+its value now to a new one, at once or in equal steps over a ramp (fouling, wear); the plant
+integrates to each step and goes on with its model rebuilt on the new value. A new drift of a
+parameter replaces a ramp of it under way; a drift the model refuses (an unknown or non-numeric
+parameter, a value out of its bounds) is dropped with its reason. Nothing else is told: a
+coordination agent judges on its own model.
+
 A sensor's period can be changed while the run goes on (``plant/<p>/sampling/<s>``, from the
 network that carries its loop, as the coordination agent assigns it): the next sample is then one
 new period after the last one taken, or at once if that instant has passed.
@@ -16,16 +24,17 @@ segment at the monitoring grid: its trajectory does not depend on other nodes' t
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from math import inf
 from typing import Any
 
 import numpy as np
 
-from bus_schemas import Move, PlantState, Sample, SamplingPeriod, keys
+from bus_schemas import Drift, Move, PlantState, Sample, SamplingPeriod, keys
 from bus_schemas.envelope import RawEnvelope
 from core.behaviour import Behaviour, Timer
 from core.time import to_units
+from plants import registry
 from plants.integrate import integrator_of
 
 __all__ = ["PlantBehaviour", "PlantSpec"]
@@ -84,6 +93,10 @@ class PlantSpec:
     noise: Mapping[str, float]
     rngs: Mapping[str, np.random.Generator]
     input_range: tuple[tuple[float, float], ...] = ()
+    kind: str = ""
+    """The model's name in :data:`plants.registry.MODELS` (to rebuild it when it drifts)."""
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """The model's parameters at the start."""
 
 
 class PlantBehaviour(Behaviour):
@@ -112,7 +125,47 @@ class PlantBehaviour(Behaviour):
             self.subscribe(key, SamplingPeriod, self._on_period(sensor))
         for input_name in self.model.input_names:  # loop actuators and scheduled disturbances
             self.subscribe(keys.actuator(self.name, input_name), Move, self._actuator(input_name))
+        self.params = dict(spec.params)
+        self._ramps: dict[str, int] = {}  # parameter -> generation of its ramp under way
+        if spec.kind:
+            self.subscribe(keys.drift(self.name), Drift, self._on_drift)
         self.at(self.end, self._final)
+
+    def _on_drift(self, env: RawEnvelope, drift: Drift) -> None:
+        """Start ``drift`` (see the module docstring): its steps are timers of this ramp's
+        generation, so a later drift of the parameter makes them stale."""
+        start = self.params.get(drift.param)
+        if isinstance(start, bool) or not isinstance(start, int | float):
+            known = sorted(k for k, v in self.params.items() if isinstance(v, int | float))
+            self.reject(self.current_key, f"{drift.param!r}: not a numeric parameter {known}")
+            return
+        try:
+            registry.build(self.spec.kind, {**self.params, drift.param: drift.value})
+        except ValueError as err:  # pydantic's ValidationError is one
+            self.reject(self.current_key, f"{drift.param} = {drift.value!r}: {err}")
+            return
+        generation = self._ramps[drift.param] = self._ramps.get(drift.param, 0) + 1
+        steps = drift.steps if drift.over > 0 else 1
+        self.log.info(
+            "%s drifts %s -> %s over %s ticks", drift.param, start, drift.value, drift.over
+        )
+        for k in range(1, steps + 1):
+            value = drift.value if k == steps else start + (drift.value - start) * k / steps
+            self.at(
+                self.now + drift.over * k // steps, self._retune(drift.param, value, generation)
+            )
+
+    def _retune(self, param: str, value: float, generation: int) -> Any:
+        def apply() -> None:
+            if self._ramps.get(param) != generation:
+                return  # replaced by a later drift of the parameter
+            self._integrate_to(self.now)
+            self._applied.clear()  # what came before the change stands with the old model
+            self.params[param] = value
+            self.model = registry.build(self.spec.kind, self.params)
+            self._step = integrator_of(self.model)
+
+        return apply
 
     def _integrate_to(self, t: int) -> None:
         """Integrate to ``t``, stopping at (and recording) every monitoring instant on the way.

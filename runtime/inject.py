@@ -1,9 +1,11 @@
-"""``wncs inject``: put a network reconfiguration, an operating mode or a set point into a
-running run.
+"""``wncs inject``: put a network reconfiguration, an operating mode, a set point or a drift of a
+plant's parameter into a running run.
 
 The request goes to the clock on ``ops/inject``; the clock stamps it into its next round as
 ``events/<network>`` (``wncs inject DIR node_down node=r1``), ``ops/mode`` (``wncs inject DIR
-mode steady_state``) or ``ops/setpoint/<loop>`` (``wncs inject DIR setpoint level=0.72``),
+mode steady_state``), ``ops/setpoint/<loop>`` (``wncs inject DIR setpoint level=0.72``) or
+``plant/<p>/drift`` (``wncs inject DIR drift reactor U=0.13 over=40``: the true plant's ``U``
+to 0.13 over 40 time units, in 20 steps unless ``steps=N``),
 counted like any other message, so the history shows exactly when it took effect and a replay of
 the history reproduces the run (DESIGN section 3, external inputs). A request is checked here
 first: an unknown event type, a malformed field, a node the run's network does not have, an
@@ -20,9 +22,10 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from agents.wncsca.config import MODES
-from bus_schemas import InjectRequest, ModeRequest, NetworkEvent, Setpoint, codec, keys
+from bus_schemas import Drift, InjectRequest, ModeRequest, NetworkEvent, Setpoint, codec, keys
 from bus_schemas.errors import SchemaError
 from core.errors import ConfigError
+from core.time import to_ticks
 from gateway.topology import Topology, parse_event
 from kernel.bus import put_when_heard
 from kernel.clock import INJECT_SOURCE, Interpreter
@@ -95,12 +98,48 @@ def _ops_request(kind: str, words: list[str], run_dir: Path | None) -> InjectReq
     return InjectRequest(setpoint={"loop": loop, "value": float(value)})
 
 
+def _drift_request(words: list[str], run_dir: Path | None) -> InjectRequest:
+    """``drift PLANT PARAM=VALUE [over=T] [steps=N]``, checked against the run's scenario (the
+    plant, a numeric parameter, a value its model accepts) if known."""
+    if not words or "=" in words[0]:
+        raise ConfigError("usage: wncs inject DIR drift PLANT PARAM=VALUE [over=T] [steps=N]")
+    plant, fields = words[0], parse_fields(words[1:])
+    over, steps = fields.pop("over", 0.0), fields.pop("steps", 20)
+    if len(fields) != 1:
+        raise ConfigError("usage: wncs inject DIR drift PLANT PARAM=VALUE [over=T] [steps=N]")
+    [(param, value)] = fields.items()
+    for name, v in (("value", value), ("over", over)):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise ConfigError(f"drift: {name}: not a finite number: {v!r}")
+    if over < 0 or isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        raise ConfigError(
+            f"drift: over must be >= 0 and steps a whole number >= 1 ({over}, {steps})"
+        )
+    if run_dir is not None:
+        scenario = load_scenario(run_dir / SCENARIO_FILE)
+        data = scenario.model_dump()
+        data["drifts"] = [{"t": 0.0, "plant": plant, "param": param, "value": value}]
+        try:  # the scenario's own checks of a drift (plant, parameter, value)
+            Scenario.model_validate(data)
+        except ValidationError as err:
+            msg = err.errors()[0]["msg"].removeprefix("Value error, ")
+            raise ConfigError(f"drift: {msg}") from err
+    drift = {"param": param, "value": float(value), "over": to_ticks(float(over)), "steps": steps}
+    try:
+        Drift.model_validate(drift)
+    except ValidationError as err:
+        raise ConfigError(f"drift: {err.errors()[0]['msg']}") from err
+    return InjectRequest(drift={"plant": plant, **drift})
+
+
 def build_request(
     event_type: str, words: list[str], *, run_dir: Path | None, network: str | None
 ) -> InjectRequest:
     """Validate a request given on the command line; raise ``ConfigError`` naming the problem."""
     if event_type in ("mode", "setpoint"):
         return _ops_request(event_type, words, run_dir)
+    if event_type == "drift":
+        return _drift_request(words, run_dir)
 
     data = {"type": event_type, **parse_fields(words)}
     try:
@@ -155,7 +194,8 @@ def send(
 def interpreter(scenario: Scenario) -> Interpreter:
     """How the clock of a run of ``scenario`` turns an external request into the message it
     stamps: a network event for its gateway (``events/<network>``), a mode or a set-point
-    request as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``)."""
+    request as operations would send it (``ops/mode``, ``ops/setpoint/<loop>``), a drift for
+    its plant (``plant/<p>/drift``)."""
     gateways = scenario.gateways()
     has_agent = scenario.agent_node() is not None
 
@@ -169,6 +209,12 @@ def interpreter(scenario: Scenario) -> Interpreter:
             if loop not in scenario.loops:
                 raise SchemaError(f"setpoint: unknown loop {loop!r}")
             return keys.setpoint(loop), Setpoint(value=request.setpoint.get("value"))
+        if request.drift is not None:
+            fields = dict(request.drift)
+            plant = fields.pop("plant", None)
+            if plant not in scenario.plants():
+                raise SchemaError(f"drift: unknown plant {plant!r}")
+            return keys.drift(plant), Drift.model_validate(fields)  # the plant checks the rest
         network = request.network or (gateways[0] if len(gateways) == 1 else None)
         if network not in gateways:
             raise SchemaError(f"network {request.network!r} is not one gateway of {gateways}")

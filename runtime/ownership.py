@@ -17,6 +17,7 @@ from the key grammar of ``bus_schemas.keys`` and the scenario's wiring:
 ``wncsca/*``, ``loop/*/sp``    the coordination agent
 ``ops/setpoint/*``,            the operator (its schedules) and the clock (the requests
 ``ops/mode``, ``events/*``     of ``wncs inject`` it stamps)
+``plant/<p>/drift``            the operator (its ``drifts:``) and the clock (injected)
 ``monitor/assessment/<l>``     the monitor of loop ``l``
 ============================  =====================================================
 
@@ -64,9 +65,10 @@ def publishers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
     for operator in scenario.nodes_of(OperatorNodeConfig):
         out[operator] |= requests
         out[operator] |= {keys.actuator(d.plant, d.input) for d in scenario.disturbances}
+        out[operator] |= {keys.drift(d.plant) for d in scenario.drifts}
     for monitor, cfg in scenario.nodes_of(MonitorNodeConfig).items():
         out[monitor].add(keys.monitor_assessment(cfg.loop))
-    out[CLOCK] |= requests | {"events/*"}
+    out[CLOCK] |= requests | {"events/*", "plant/*/drift"}
     return {n: tuple(sorted(p)) for n, p in sorted(out.items())}
 
 
@@ -85,7 +87,7 @@ def readers(scenario: Scenario) -> dict[str, tuple[str, ...]]:
     costs no behaviour to build (the agent's takes seconds)."""
     out: dict[str, set[str]] = {n: set() for n in scenario.participants()}
     for plant in scenario.plants():
-        out[plant] |= {f"plant/{plant}/actuator/*", f"plant/{plant}/sampling/*"}
+        out[plant] |= {f"plant/{plant}/actuator/*", f"plant/{plant}/sampling/*", keys.drift(plant)}
     for controller in scenario.nodes_of(ControllerNodeConfig):
         out[controller] |= {"loop/*/meas", "link/*/rx", "ops/setpoint/*", "loop/*/sp", "wncsca/*"}
     for carrier in scenario.carriers():

@@ -338,6 +338,32 @@ def check_disturbances(s: ScenarioSchema) -> None:
             raise ValueError(f"{at}.t: {dist.t} is after end_time {s.end_time}")
 
 
+def check_drifts(s: ScenarioSchema) -> None:
+    """A drift moves a numeric parameter of its plant to a value its model accepts, within the
+    run, with an operator to publish it; drifts of one parameter do not overlap."""
+    if s.drifts and not s.nodes_of(OperatorNodeConfig):
+        raise ValueError("drifts: a schedule needs an operator node to publish it")
+    until: dict[tuple[str, str], float] = {}
+    for i, d in sorted(enumerate(s.drifts), key=lambda e: e[1].t):
+        at = f"drifts[{i}]"
+        cfg = _node_of(s, PlantNodeConfig, d.plant, f"{at}.plant")
+        value = cfg.params.get(d.param)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            known = sorted(k for k, v in cfg.params.items() if isinstance(v, int | float))
+            raise ValueError(f"{at}.param: {d.param!r} is not a numeric parameter {known}")
+        try:
+            PlantNodeConfig.model_validate(
+                {**cfg.model_dump(), "params": {**cfg.params, d.param: d.value}}
+            )
+        except ValueError as err:
+            raise ValueError(f"{at}.value: the plant refuses {d.param} = {d.value}: {err}") from err
+        if d.t > s.end_time:
+            raise ValueError(f"{at}.t: {d.t} is after end_time {s.end_time}")
+        if until.get((d.plant, d.param), -1.0) > d.t:
+            raise ValueError(f"{at}.t: a drift of {d.plant}.{d.param} is still under way")
+        until[(d.plant, d.param)] = d.t + d.over
+
+
 def check_setpoints(s: ScenarioSchema) -> None:
     """A set-point change is of a loop with a set point, within the run, announced (to an
     agent) no earlier than the run's start."""
@@ -494,6 +520,7 @@ GRAPH_CHECKS: tuple[Callable[[ScenarioSchema], None], ...] = (
     check_agent_model,
     check_monitors,
     check_disturbances,
+    check_drifts,
     check_setpoints,
     check_modes,
     check_feedforward,

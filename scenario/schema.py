@@ -58,6 +58,7 @@ __all__ = [
     "LoopConfig",
     "LinkConfig",
     "Disturbance",
+    "DriftChange",
     "SetpointChange",
     "ModeChange",
     "ScenarioSchema",
@@ -485,6 +486,21 @@ class Disturbance(BaseModel):
     value: float
 
 
+class DriftChange(BaseModel):
+    """A scheduled drift of one of a true plant's physical parameters (fouling, wear): from its
+    value at ``t`` to ``value``, at once (``over: 0``) or in ``steps`` equal steps over ``over``
+    time units. The plant node changes; a coordination agent's model does not."""
+
+    model_config = _STRICT
+
+    t: float = Field(ge=0, description="when the drift starts, time units")
+    plant: str
+    param: str = Field(description="the parameter, by the plant model's symbol")
+    value: float = Field(description="where it ends, in the parameter's unit")
+    over: float = Field(default=0.0, ge=0, description="ramp duration, time units (0: a step)")
+    steps: int = Field(default=20, ge=1, le=10_000, description="ramp steps (piecewise constant)")
+
+
 class SetpointChange(BaseModel):
     """A scheduled set-point change, optionally announced ahead (to a coordination agent)."""
 
@@ -535,6 +551,10 @@ class ScenarioSchema(BaseModel):
     )
     setpoints: list[SetpointChange] = []
     disturbances: list[Disturbance] = []
+    drifts: list[DriftChange] = Field(
+        default_factory=list,
+        description="scheduled drifts of plant parameters (published by the operator)",
+    )
     modes: list[ModeChange] = Field(
         default_factory=list, description="operating modes requested of the agent, in time"
     )

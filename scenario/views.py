@@ -28,7 +28,7 @@ from agents.monitor.behaviour import MonitorSpec
 from agents.monitor.columns import RunLoop, RunShape
 from agents.monitor.config import MonitorNodeConfig
 from agents.monitor.run_data import RunSeries
-from agents.operator.behaviour import DisturbanceAt, ModeAt, OperatorSpec, SetpointAt
+from agents.operator.behaviour import DisturbanceAt, DriftAt, ModeAt, OperatorSpec, SetpointAt
 from agents.wncsca.behaviour import WncscaBehaviour
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
@@ -44,6 +44,7 @@ from agents.wncsca.spec import (
     Trial,
 )
 from agents.wncsca.trials import Trials
+from bus_schemas import Drift
 from controllers.behaviour import ControllerSpec
 from controllers.registry import uses_feedforward
 from core.errors import ConfigError
@@ -93,6 +94,8 @@ def plant_spec(scenario: ScenarioSchema, name: str) -> PlantSpec:
         noise=dict(cfg.noise),
         rngs={s: scenario.sensor_rng(name, s) for s in sensors},
         input_range=tuple(cfg.input_range.get(i, (-math.inf, math.inf)) for i in model.input_names),
+        kind=cfg.model,
+        params=dict(cfg.params),
     )
 
 
@@ -202,6 +205,14 @@ def operator_spec(scenario: ScenarioSchema, name: str) -> OperatorSpec:
         modes=tuple(ModeAt(to_ticks(m.t), m.mode) for m in scenario.modes),
         disturbances=tuple(
             DisturbanceAt(to_ticks(d.t), d.plant, d.input, d.value) for d in scenario.disturbances
+        ),
+        drifts=tuple(
+            DriftAt(
+                to_ticks(d.t),
+                d.plant,
+                Drift(param=d.param, value=d.value, over=to_ticks(d.over), steps=d.steps),
+            )
+            for d in scenario.drifts
         ),
     )
 

@@ -3,7 +3,7 @@
 Set-point changes go on ``ops/setpoint/<loop>`` (an announced change goes ``announce`` ahead of
 its time, with ``t_apply``); operating-mode requests on ``ops/mode``; disturbances (inputs no loop
 moves, such as a draw-off flow) go straight to the plant's actuator key
-``plant/<p>/actuator/<input>``.
+``plant/<p>/actuator/<input>``; drifts of a plant's parameters on ``plant/<p>/drift``.
 """
 
 from __future__ import annotations
@@ -12,10 +12,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from bus_schemas import ModeRequest, Move, Setpoint, keys
+from bus_schemas import Drift, ModeRequest, Move, Setpoint, keys
 from core.behaviour import Behaviour
 
-__all__ = ["OperatorBehaviour", "OperatorSpec", "SetpointAt", "ModeAt", "DisturbanceAt"]
+__all__ = [
+    "OperatorBehaviour",
+    "OperatorSpec",
+    "SetpointAt",
+    "ModeAt",
+    "DisturbanceAt",
+    "DriftAt",
+]
 
 
 class SetpointAt(NamedTuple):
@@ -37,6 +44,12 @@ class DisturbanceAt(NamedTuple):
     value: float
 
 
+class DriftAt(NamedTuple):
+    t: int
+    plant: str
+    drift: Drift
+
+
 @dataclass(frozen=True)
 class OperatorSpec:
     """The scenario's schedules, in ticks (:func:`scenario.views.operator_spec`)."""
@@ -44,6 +57,7 @@ class OperatorSpec:
     setpoints: tuple[SetpointAt, ...] = ()
     modes: tuple[ModeAt, ...] = ()
     disturbances: tuple[DisturbanceAt, ...] = ()
+    drifts: tuple[DriftAt, ...] = ()
 
 
 class OperatorBehaviour(Behaviour):
@@ -60,12 +74,17 @@ class OperatorBehaviour(Behaviour):
             self.at(mode.t, self._mode(mode.mode))
         for dist in spec.disturbances:
             self.at(dist.t, self._disturber(dist.plant, dist.input, dist.value))
+        for drift in spec.drifts:
+            self.at(drift.t, self._drifter(drift.plant, drift.drift))
 
     def _publisher(self, loop: str, body: Setpoint) -> Callable[[], None]:
         return lambda: self.publish(keys.setpoint(loop), body)
 
     def _mode(self, mode: str) -> Callable[[], None]:
         return lambda: self.publish(keys.ops_mode(), ModeRequest(mode=mode))
+
+    def _drifter(self, plant: str, drift: Drift) -> Callable[[], None]:
+        return lambda: self.publish(keys.drift(plant), drift)
 
     def _disturber(self, plant: str, input_name: str, value: float) -> Callable[[], None]:
         key = keys.actuator(plant, input_name)
