@@ -3,11 +3,12 @@
 
 Sensor samples (``plant/<p>/sensor/<s>``) are delivered on ``loop/<l>/meas``; control moves
 (``loop/<l>/u``) on ``plant/<p>/actuator/<i>``; what a controller transmits on a link
-(``link/<k>/tx``) is delivered on ``link/<k>/rx``. When a packet arrives, its delivery time comes
-from :class:`gateway.carrier.PathCarrier` (constant delays, or per-hop delays with retries and loss
-drawn from the path's own seeded generator); a lost packet is reported on ``net/lost`` and never
-delivered. A delivery due now is published in this round (a microstep), a later one is a timer,
-so in real-time mode delays pass in wall time through the same clock.
+(``link/<k>/tx``) is delivered on ``link/<k>/rx``. When a packet arrives it is handed to the
+node's :class:`gateway.carrier.PathCarrier`, which says what became of it: at once (constant
+delays, or per-hop delays with retries and loss drawn from the path's own seeded generator) or
+as a TSCH network's slots run. A lost packet is reported on ``net/lost`` and never delivered. A
+delivery due now is published in this round (a microstep), a later one is a timer, so in
+real-time mode delays pass in wall time through the same clock.
 
 A gateway proposes its configuration (``net/proposal``: routes, hops, the three delay estimates)
 at start and after every reconfiguration. With no coordination agent in the scenario it applies
@@ -141,7 +142,7 @@ class NetworkBehaviour(Behaviour):
             "network configuration #%d (%s %s): hops %s", self._proposals, source, kind, hops
         )
         self._paths = paths
-        tsch = self.carrier.tsch.capacity() if self.carrier.tsch is not None else None
+        tsch = self.carrier.capacity()
         self.publish(
             keys.net_proposal(),
             Proposal(id=self._proposals, event=kind, source=source, paths=paths, tsch=tsch),
@@ -189,7 +190,7 @@ class NetworkBehaviour(Behaviour):
             self._pump()
 
     def _on_rates(self, env: RawEnvelope, rates: Rates) -> None:
-        if self.carrier.slotted and not self._can_carry(rates):
+        if not self._can_carry(rates):
             return
         changed = {}
         for name, loop in self.carrier.loops.items():
@@ -222,16 +223,16 @@ class NetworkBehaviour(Behaviour):
             self._pump()
 
     def _can_carry(self, rates: Rates) -> bool:
-        """A TSCH manager's answer to the agent's periods: it can carry them, or it refuses
-        them on ``net/applied`` (event ``rates_refused``) naming the links that lack cells,
-        and keeps the periods in force."""
+        """The network's answer to the agent's periods: it can carry them (a network without
+        slot capacity always can), or a TSCH manager refuses them on ``net/applied`` (event
+        ``rates_refused``) naming the links that lack cells, and keeps the periods in force."""
         asked = {
             n: to_units(self.carrier.granted(p))
             for n, p in rates.periods.items()
             if n in self.carrier.loops and self.carrier.loops[n].sensor is not None
         }
-        plan = self.carrier.plan(asked)
-        if plan.feasible:
+        plan = self.carrier.infeasible_plan(asked)
+        if plan is None:
             return True
         reason = f"the manager cannot carry these periods: {plan.describe_lack()}"
         self.log.warning("rates refused: %s", reason)
@@ -251,12 +252,12 @@ class NetworkBehaviour(Behaviour):
 
     def _summary(self) -> ScheduleSummary | None:
         """The schedule in force and the lifetimes it projects (a TSCH gateway)."""
-        tsch = self.carrier.tsch
-        if tsch is None:
+        schedule = self.carrier.schedule
+        if schedule is None:
             return None
         energy = self.carrier.energy(self.now)
         self._pump()
-        return _summary_of(tsch.schedule, {n: e["lifetime_h"] for n, e in energy.items()})
+        return _summary_of(schedule, {n: e["lifetime_h"] for n, e in energy.items()})
 
     def _stats(self) -> None:
         self.publish(
@@ -281,29 +282,15 @@ class NetworkBehaviour(Behaviour):
         def forward(env: RawEnvelope, body: Any) -> None:
             if direction == SENSOR:
                 self._last_sample[loop] = body.t_sampled
-            if self.carrier.slotted:
-                self.carrier.submit(loop, direction, self.now, (out_key, body))
-                self._pump()
-                return
-            t = self.carrier.deliver(loop, direction, self.now)
-            if t is None:
-                self.publish(
-                    keys.net_lost(), Loss(loop=loop, direction=direction, t_ready=self.now)
-                )
-            elif t == self.now:
-                self.publish(out_key, body)
-            else:
-                self.at(t, lambda: self.publish(out_key, body))
+            self.carrier.submit(loop, direction, self.now, (out_key, body))
+            self._pump()
 
         return forward
 
-    # -- a TSCH network ------------------------------------------------------------------------
-
     def _pump(self) -> None:
-        """Publish what the TSCH network carried up to now, and wake at the end of its next busy
-        slot; check the batteries when one is due to run out."""
-        if not self.carrier.slotted:
-            return
+        """Publish what the network carried up to now (a lost packet on ``net/lost``, a packet
+        due later as a timer), and wake when it next has something to do (a TSCH network: the
+        end of its next busy slot); check the batteries when one is due to run out."""
         self.carrier.advance(self.now)
         for c in self.carrier.drain():
             out_key, body = c.token
@@ -314,7 +301,7 @@ class NetworkBehaviour(Behaviour):
                 )
             elif c.t_deliver <= self.now:
                 self.publish(out_key, body)
-            else:  # a constant (wired) path of a TSCH gateway
+            else:  # delivered later: a delay drawn at once, or a constant (wired) path
                 self.at(c.t_deliver, lambda k=out_key, b=body: self.publish(k, b))
         wake = self.carrier.next_wakeup()
         if wake is not None and wake not in self._wakes:
@@ -332,17 +319,16 @@ class NetworkBehaviour(Behaviour):
     def _plan_battery_check(self) -> None:
         """Plan a battery check for when the next battery is due to run out, computed again
         whenever the schedule changes (a new segment of the MAC) or a check has fired."""
-        tsch = self.carrier.tsch
-        if tsch is None or self._battery_check is not None:
+        if self._battery_check is not None:
             return
-        version = len(tsch.mac.segments)
+        version = self.carrier.schedule_version()
         if version == self._battery_version:
             return
         self._battery_version = version
-        due = tsch.depletion(self.now)
-        if due is None or due[0] > self.spec.end:
+        due = self.carrier.depletion(self.now)
+        if due is None or due > self.spec.end:
             return
-        at = max(due[0], self.now)
+        at = max(due, self.now)
         self._battery_check = at
         self.at(at, self._check_batteries)
 
@@ -351,10 +337,8 @@ class NetworkBehaviour(Behaviour):
         the gateway reroutes and proposes); otherwise the check is planned again."""
         self._battery_check = None
         self._battery_version = None
-        tsch = self.carrier.tsch
-        assert tsch is not None
         self.carrier.advance(self.now)
-        for node in tsch.empty(self.now):
+        for node in self.carrier.empty(self.now):
             self.log.warning("node %s: battery empty at t = %s", node, to_units(self.now))
             paths = self.carrier.apply(NodeDown(node=node), self.now)
             self._alternatives = None

@@ -64,7 +64,7 @@ def parse_delays(text: str, loops: Any) -> dict[str, float]:
 def _network_paths(scenario: Any, name: str) -> dict[str, PathConfig]:
     """The paths as network ``name`` would first propose them."""
     if scenario.is_wireless(name):
-        configuration = PathCarrier(carrier_spec(scenario, name)).configuration(0)
+        configuration = PathCarrier.from_spec(carrier_spec(scenario, name)).configuration(0)
         return {p: PathConfig.model_validate(e) for p, e in configuration.items()}
     paths: dict[str, PathConfig] = {}
     for loop, lp in scenario.loops.items():

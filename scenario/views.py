@@ -161,7 +161,7 @@ def network_spec(scenario: ScenarioSchema, name: str) -> NetworkSpec:
     gateway = scenario.nodes_of(GatewayNodeConfig).get(name)
     stats_period = gateway.stats_period if gateway is not None else None
     return NetworkSpec(
-        carrier=PathCarrier(carrier_spec(scenario, name)),
+        carrier=PathCarrier.from_spec(carrier_spec(scenario, name)),
         governed=scenario.agent_node() is not None,
         end=to_ticks(scenario.end_time),
         stats_period=None if stats_period is None else to_ticks(stats_period),

@@ -60,7 +60,7 @@ from agents.wncsca.steps import judge_step, test_length
 from bus_schemas import ModeRequest, Proposal, Setpoint, TschCapacity
 from bus_schemas.bodies import PathConfig
 from core.time import to_ticks, to_units
-from gateway.carrier import PathCarrier
+from gateway.carrier import TschCarrier
 from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
@@ -575,7 +575,7 @@ class Coordinator:
         """:meth:`energy` over a TSCH network: the first battery to run out under its manager's
         schedule for the proposal's routes (:meth:`gateway.tsch.network.TschNetwork.lifetimes_h`),
         the loops' sensor and actuator paths at their periods."""
-        carrier = PathCarrier(self.spec.carriers[network])
+        carrier = TschCarrier(self.spec.carriers[network])
         assert carrier.tsch is not None
         routes = {p: (tuple(e.route) or None) for p, e in paths.items()}
 

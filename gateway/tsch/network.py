@@ -1,7 +1,7 @@
 """A gateway's TSCH network: link quality, the manager's schedule, the MAC, energy and batteries,
 and the delay estimates the coordination agent is proposed (issue 15).
 
-:class:`TschNetwork` is what :class:`gateway.carrier.PathCarrier` runs when the gateway says
+:class:`TschNetwork` is what :class:`gateway.carrier.TschCarrier` runs when the gateway says
 ``mac: tsch``. The topology (:mod:`gateway.topology`) still routes (shortest paths by the
 configured metric over links whose PRR is, with ``link_model: pathloss`` or ``trace``, the mean
 PDR over the hopping channels); the manager (:func:`gateway.tsch.schedule.schedule_for`) gives

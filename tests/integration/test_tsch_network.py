@@ -61,7 +61,7 @@ def test_interference_raises_the_delays_and_the_agent_judges_again(demo):
 
 
 def test_the_schedule_shrinks_when_the_rates_relax():
-    carrier = PathCarrier(carrier_spec(wncs.load(TSCH), "network"))
+    carrier = PathCarrier.from_spec(carrier_spec(wncs.load(TSCH), "network"))
     fast = carrier.plan({"level": 0.1, "temperature": 0.1})
     slow = carrier.plan({"level": 1.0, "temperature": 1.0})
     assert fast.feasible and slow.feasible
@@ -96,7 +96,7 @@ def test_an_aligned_chain_without_loss_takes_its_cells_span(tmp_path):
     sample's delay, the ping estimate and the predicted distribution are the span of the
     path's cells, from the first cell's start to the last cell's end, read off the schedule."""
     sc = wncs.load(write_variant(tmp_path, TSCH, "alone.yaml", _level_alone))
-    carrier = PathCarrier(carrier_spec(sc, "network"))
+    carrier = PathCarrier.from_spec(carrier_spec(sc, "network"))
     route = carrier.routes["level", "sensor"].nodes
     cells = [c for c in carrier.tsch.schedule.cells if c.flow == "level.sensor"]
     last = -1
@@ -116,7 +116,7 @@ def test_the_proposed_delays_are_what_the_samples_then_see(tmp_path):
     the gateway; the probes, sent with the other path's traffic, predict exactly the delays the
     run's samples see."""
     sc = wncs.load(write_variant(tmp_path, TSCH, "lossless.yaml", _no_agent))
-    proposed = PathCarrier(carrier_spec(sc, "network")).configuration(0)
+    proposed = PathCarrier.from_spec(carrier_spec(sc, "network")).configuration(0)
     result = wncs.run(sc)
     for loop in ("level", "temperature"):
         df = result.loops[loop].to_pandas()
@@ -135,7 +135,7 @@ def test_a_relay_whose_battery_runs_out_goes_down_when_predicted_and_the_run_goe
     radio = RADIOS["openmote_cc2538"]
     probe = wncs.load(write_variant(tmp_path, TSCH, "probe.yaml", _no_agent))
     length = probe.nodes["network"].tsch.length
-    carrier = PathCarrier(carrier_spec(probe, "network"))
+    carrier = PathCarrier.from_spec(carrier_spec(probe, "network"))
     relay = carrier.routes["level", "sensor"].nodes[1]
     sched = carrier.tsch.schedule
     rx = sum(1 for c in sched.cells if c.rx == relay)

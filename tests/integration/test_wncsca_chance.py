@@ -122,7 +122,7 @@ def test_a_step_too_fast_for_the_control_periods_tightens_them_for_its_transient
     step is applied with the tightened period, relaxed after the test's length (8 pu)."""
     scenario = load_scenario(JITTER)
     co = coordinator(scenario)
-    paths = typed_paths(PathCarrier(carrier_spec(scenario, "network")).configuration(0))
+    paths = typed_paths(PathCarrier.from_spec(carrier_spec(scenario, "network")).configuration(0))
     co.laws = path_laws(paths, ("level", "temperature"))
     co.delays = {"level": 0.17, "temperature": 0.10}
     slow = {"level": 0.175, "temperature": 0.2}

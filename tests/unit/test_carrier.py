@@ -19,7 +19,7 @@ WSN = SCENARIOS / "jcstr_wsn.yaml"
 
 def test_wired_paths_are_constant():
     s = load_scenario(BENCHMARK).with_loops(tau_d={"level": 0.17})
-    c = PathCarrier(carrier_spec(s, "network"))
+    c = PathCarrier.from_spec(carrier_spec(s, "network"))
     assert c.deliver("level", SENSOR, 1000) == 1000 + to_ticks(0.17)
     assert c.deliver("level", ACTUATOR, 1000) == 1000
     assert path_hops(s) == {"level": 0, "temperature": 0}
@@ -28,7 +28,7 @@ def test_wired_paths_are_constant():
 def test_wsn_paths_have_the_scenarios_mean_delays():
     s = load_scenario(WSN)
     assert path_hops(s) == {"level": 3, "temperature": 2}
-    c = PathCarrier(carrier_spec(s, "network"))
+    c = PathCarrier.from_spec(carrier_spec(s, "network"))
     for loop, mean in (("level", 0.17), ("temperature", 0.10)):
         assert c.routes[loop, SENSOR].mean_delay == pytest.approx(mean, rel=1e-4)
         delays = [c.deliver(loop, SENSOR, 0) for _ in range(4000)]
@@ -39,12 +39,15 @@ def test_wsn_paths_have_the_scenarios_mean_delays():
 
 def test_each_path_draws_from_its_own_seeded_generator():
     s = load_scenario(WSN)
-    a, b = PathCarrier(carrier_spec(s, "network")), PathCarrier(carrier_spec(s, "network"))
+    a, b = (
+        PathCarrier.from_spec(carrier_spec(s, "network")),
+        PathCarrier.from_spec(carrier_spec(s, "network")),
+    )
     seq_a = [a.deliver("level", SENSOR, 0) for _ in range(50)]
     for _ in range(7):  # drawing on another path does not change this path's draws
         b.deliver("temperature", SENSOR, 0)
     assert [b.deliver("level", SENSOR, 0) for _ in range(50)] == seq_a
-    other_seed = PathCarrier(carrier_spec(s.model_copy(update={"seed": 1}), "network"))
+    other_seed = PathCarrier.from_spec(carrier_spec(s.model_copy(update={"seed": 1}), "network"))
     assert [other_seed.deliver("level", SENSOR, 0) for _ in range(50)] != seq_a
 
 
