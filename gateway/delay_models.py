@@ -111,10 +111,24 @@ def _round_sum(draws: np.ndarray) -> int:
     return int(np.rint(draws * TICKS_PER_UNIT).astype(np.int64).sum())
 
 
-class ConstantDelay(BaseModel):
-    """Every attempt takes exactly ``delay`` time units."""
+class _PerAttemptDelay(BaseModel):
+    """A model in which every attempt's delay is an independent draw of one distribution,
+    whatever the time (constant, uniform, exponential; not TDMA): a hop that delivers costs
+    ``E[a | hop delivers]`` mean attempts (module docstring)."""
 
     model_config = _FROZEN
+
+    def mean_attempt(self) -> float:
+        """Mean per-attempt delay, time units."""
+        raise NotImplementedError
+
+    def mean_hop(self, prr: float, retry_limit: int) -> float:
+        """Mean delay of a hop that delivers (retries included), time units."""
+        return expected_attempts_delivered(prr, retry_limit) * self.mean_attempt()
+
+
+class ConstantDelay(_PerAttemptDelay):
+    """Every attempt takes exactly ``delay`` time units."""
 
     type: Literal["constant"] = "constant"
     delay: float = Field(ge=0, description="per-attempt delay, time units")
@@ -127,15 +141,9 @@ class ConstantDelay(BaseModel):
         """Mean per-attempt delay, time units."""
         return self.delay
 
-    def mean_hop(self, prr: float, retry_limit: int) -> float:
-        """Mean delay of a hop that delivers (retries included), time units."""
-        return expected_attempts_delivered(prr, retry_limit) * self.mean_attempt()
 
-
-class UniformDelay(BaseModel):
+class UniformDelay(_PerAttemptDelay):
     """Every attempt takes an independent ``U(low, high)`` time."""
-
-    model_config = _FROZEN
 
     type: Literal["uniform"] = "uniform"
     low: float = Field(ge=0, description="shortest per-attempt delay, time units")
@@ -155,15 +163,9 @@ class UniformDelay(BaseModel):
         """Mean per-attempt delay ``(low + high) / 2``, time units."""
         return 0.5 * (self.low + self.high)
 
-    def mean_hop(self, prr: float, retry_limit: int) -> float:
-        """Mean delay of a hop that delivers (retries included), time units."""
-        return expected_attempts_delivered(prr, retry_limit) * self.mean_attempt()
 
-
-class ExponentialDelay(BaseModel):
+class ExponentialDelay(_PerAttemptDelay):
     """Every attempt takes ``base + Exp(mean)``: a fixed part plus exponential jitter."""
-
-    model_config = _FROZEN
 
     type: Literal["exponential"] = "exponential"
     base: float = Field(ge=0, description="fixed part of the per-attempt delay, time units")
@@ -176,10 +178,6 @@ class ExponentialDelay(BaseModel):
     def mean_attempt(self) -> float:
         """Mean per-attempt delay ``base + mean``, time units."""
         return self.base + self.mean
-
-    def mean_hop(self, prr: float, retry_limit: int) -> float:
-        """Mean delay of a hop that delivers (retries included), time units."""
-        return expected_attempts_delivered(prr, retry_limit) * self.mean_attempt()
 
 
 class TDMADelay(BaseModel):
