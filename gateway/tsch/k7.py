@@ -205,95 +205,146 @@ def parse_k7(lines: Iterable[str], source: str = "<k7>") -> K7Trace:
         non-numeric mean_rssi; the message names ``source`` and the 1-based line.
     """
     it = iter(lines)
-
-    def fail(lineno: int, what: str) -> ConfigError:
-        return ConfigError(f"{source}:{lineno}: {what}")
-
-    first = next(it, None)
-    if first is None or not first.strip():
-        raise fail(1, "empty file (expected a JSON header line)")
-    try:
-        header = json.loads(first)
-    except json.JSONDecodeError as exc:
-        raise fail(1, f"bad JSON header: {exc.msg}") from None
-    if not isinstance(header, dict):
-        raise fail(1, f"bad JSON header: expected an object, got {type(header).__name__}")
-    try:
-        header_channels = _header_channels(header.get("channels"))
-    except _RowError as exc:
-        raise fail(1, f"bad JSON header: {exc}") from None
-
-    second = next(it, None)
-    if second is None or not second.strip():
-        raise fail(2, "missing CSV header line (datetime,src,dst,channel,mean_rssi,pdr,...)")
-    columns = [c.strip() for c in second.rstrip("\r\n").split(",")]
-    for col in REQUIRED_COLUMNS:
-        if col not in columns:
-            raise fail(2, f"missing column {col!r} (columns: {','.join(columns)})")
-    chan_cols = [c for c in _CHANNEL_COLUMNS if c in columns]
-    if not chan_cols:
-        raise fail(2, f"missing column 'channel' or 'channels' (columns: {','.join(columns)})")
-    if len(chan_cols) > 1:
-        raise fail(2, "both 'channel' and 'channels' columns: keep one")
-    i_dt, i_src, i_dst = columns.index("datetime"), columns.index("src"), columns.index("dst")
-    i_ch, i_rssi, i_pdr = (
-        columns.index(chan_cols[0]),
-        columns.index("mean_rssi"),
-        columns.index("pdr"),
-    )
-    n_fields = len(columns)
-
-    raw: dict[tuple[str, str, int], tuple[list[float], list[float], list[float | None]]] = {}
-    skipped: list[int] = []
-    start: datetime | None = None
-    last: datetime | None = None
-    last_t = 0.0
+    header, header_channels = _json_header(next(it, None), source)
+    columns = _csv_header(next(it, None), source)
+    rows = _Rows(columns, header_channels, source)
     for lineno, line in enumerate(it, start=3):
-        text = line.rstrip("\r\n")
-        if not text.strip():
-            continue
-        fields = [f.strip() for f in text.split(",")]
-        if len(fields) != n_fields:
-            raise fail(lineno, f"expected {n_fields} fields ({second.strip()}), got {len(fields)}")
-        try:
-            when = _datetime(fields[i_dt])
-            channels = _channels(fields[i_ch], header_channels)
-            pdr = _pdr(fields[i_pdr])
-            rssi = _rssi(fields[i_rssi])
-        except _RowError as exc:
-            raise fail(lineno, str(exc)) from None
-        if last is not None and when < last:
-            raise fail(lineno, f"time goes backwards: {fields[i_dt]} is before the row above")
-        if start is None:
-            start = when
-        last = when
-        last_t = (when - start).total_seconds()
-        src, dst = fields[i_src], fields[i_dst]
-        if not src or not dst:
-            skipped.append(lineno)
-            continue
-        for ch in channels:
-            times, pdrs, rssis = raw.setdefault((src, dst, ch), ([], [], []))
-            if times and times[-1] == last_t:  # same time: the later line wins
-                pdrs[-1], rssis[-1] = pdr, rssi
-            else:
-                times.append(last_t)
-                pdrs.append(pdr)
-                rssis.append(rssi)
-    if start is None:
-        raise fail(3, "no data rows after the CSV header")
+        rows.read(lineno, line)
+    if rows.start is None:
+        raise _fail(source, 3, "no data rows after the CSV header")
     series = {
         key: LinkSeries(tuple(times), tuple(pdrs), tuple(rssis))
-        for key, (times, pdrs, rssis) in sorted(raw.items())
+        for key, (times, pdrs, rssis) in sorted(rows.raw.items())
     }
     return K7Trace(
         source=source,
         header=MappingProxyType(header),
-        start=start,
-        duration_s=last_t,
+        start=rows.start,
+        duration_s=rows.last_t,
         series=MappingProxyType(series),
-        skipped_lines=tuple(skipped),
+        skipped_lines=tuple(rows.skipped),
     )
+
+
+def _fail(source: str, lineno: int, what: str) -> ConfigError:
+    return ConfigError(f"{source}:{lineno}: {what}")
+
+
+def _json_header(first: str | None, source: str) -> tuple[dict[str, Any], tuple[int, ...]]:
+    """Line 1: the JSON header, and the channels it lists."""
+    if first is None or not first.strip():
+        raise _fail(source, 1, "empty file (expected a JSON header line)")
+    try:
+        header = json.loads(first)
+    except json.JSONDecodeError as exc:
+        raise _fail(source, 1, f"bad JSON header: {exc.msg}") from None
+    if not isinstance(header, dict):
+        raise _fail(source, 1, f"bad JSON header: expected an object, got {type(header).__name__}")
+    try:
+        header_channels = _header_channels(header.get("channels"))
+    except _RowError as exc:
+        raise _fail(source, 1, f"bad JSON header: {exc}") from None
+    return header, header_channels
+
+
+@dataclass(frozen=True)
+class _Columns:
+    """Line 2: where each column a row needs is, and how many fields a row has."""
+
+    line: str  # the CSV header, for messages
+    i_dt: int
+    i_src: int
+    i_dst: int
+    i_ch: int
+    i_rssi: int
+    i_pdr: int
+    n_fields: int
+
+
+def _csv_header(second: str | None, source: str) -> _Columns:
+    """Line 2: the CSV column names."""
+    if second is None or not second.strip():
+        raise _fail(
+            source, 2, "missing CSV header line (datetime,src,dst,channel,mean_rssi,pdr,...)"
+        )
+    columns = [c.strip() for c in second.rstrip("\r\n").split(",")]
+    for col in REQUIRED_COLUMNS:
+        if col not in columns:
+            raise _fail(source, 2, f"missing column {col!r} (columns: {','.join(columns)})")
+    chan_cols = [c for c in _CHANNEL_COLUMNS if c in columns]
+    if not chan_cols:
+        raise _fail(
+            source, 2, f"missing column 'channel' or 'channels' (columns: {','.join(columns)})"
+        )
+    if len(chan_cols) > 1:
+        raise _fail(source, 2, "both 'channel' and 'channels' columns: keep one")
+    return _Columns(
+        line=second.strip(),
+        i_dt=columns.index("datetime"),
+        i_src=columns.index("src"),
+        i_dst=columns.index("dst"),
+        i_ch=columns.index(chan_cols[0]),
+        i_rssi=columns.index("mean_rssi"),
+        i_pdr=columns.index("pdr"),
+        n_fields=len(columns),
+    )
+
+
+_Series = tuple[list[float], list[float], list[float | None]]  # times (s), pdrs, rssis
+
+
+class _Rows:
+    """The data rows read so far: each (src, dst, channel) series, the skipped lines, the first
+    row's time and the last row's, seconds after the first."""
+
+    def __init__(self, columns: _Columns, header_channels: tuple[int, ...], source: str) -> None:
+        self.columns = columns
+        self.header_channels = header_channels
+        self.source = source
+        self.raw: dict[tuple[str, str, int], _Series] = {}
+        self.skipped: list[int] = []
+        self.start: datetime | None = None
+        self.last: datetime | None = None
+        self.last_t = 0.0
+
+    def read(self, lineno: int, line: str) -> None:
+        """Add data row ``line`` (line ``lineno``; a blank line is nothing)."""
+        c, source = self.columns, self.source
+        text = line.rstrip("\r\n")
+        if not text.strip():
+            return
+        fields = [f.strip() for f in text.split(",")]
+        if len(fields) != c.n_fields:
+            raise _fail(
+                source, lineno, f"expected {c.n_fields} fields ({c.line}), got {len(fields)}"
+            )
+        try:
+            when = _datetime(fields[c.i_dt])
+            channels = _channels(fields[c.i_ch], self.header_channels)
+            pdr = _pdr(fields[c.i_pdr])
+            rssi = _rssi(fields[c.i_rssi])
+        except _RowError as exc:
+            raise _fail(source, lineno, str(exc)) from None
+        if self.last is not None and when < self.last:
+            raise _fail(
+                source, lineno, f"time goes backwards: {fields[c.i_dt]} is before the row above"
+            )
+        if self.start is None:
+            self.start = when
+        self.last = when
+        self.last_t = (when - self.start).total_seconds()
+        src, dst = fields[c.i_src], fields[c.i_dst]
+        if not src or not dst:
+            self.skipped.append(lineno)
+            return
+        for ch in channels:
+            times, pdrs, rssis = self.raw.setdefault((src, dst, ch), ([], [], []))
+            if times and times[-1] == self.last_t:  # same time: the later line wins
+                pdrs[-1], rssis[-1] = pdr, rssi
+            else:
+                times.append(self.last_t)
+                pdrs.append(pdr)
+                rssis.append(rssi)
 
 
 # ----------------------------------------------------------------------------------- helpers
