@@ -576,11 +576,9 @@ class Coordinator:
         schedule for the proposal's routes (:meth:`gateway.tsch.network.TschNetwork.lifetimes_h`),
         the loops' sensor and actuator paths at their periods."""
         carrier = TschCarrier(self.spec.carriers[network])
-        assert carrier.tsch is not None
         routes = {p: (tuple(e.route) or None) for p, e in paths.items()}
 
         def lifetime(periods: Mapping[str, float]) -> float:
-            assert carrier.tsch is not None
             ticks = path_ticks(routes, periods, self.link_periods)
             hours = carrier.tsch.lifetimes_h(routes, ticks)
             return min((h for h in hours.values() if h is not None), default=math.inf)
