@@ -56,7 +56,7 @@ from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.spec import AgentSpec
-from agents.wncsca.steps import judge_step, test_length
+from agents.wncsca.steps import judge_step, safe_alternative, test_length
 from bus_schemas import ModeRequest, Proposal, Setpoint, TschCapacity
 from bus_schemas.bodies import PathConfig
 from core.time import to_ticks, to_units
@@ -473,7 +473,22 @@ class Coordinator:
             )
             judged = (step.reason(self.config.overshoot_limit),)
             if step.verdict == "refuse":
-                return Decision(None, "refuse", judged), None, now
+                alternative = safe_alternative(
+                    self.model,
+                    self.laws,
+                    self.delays,
+                    self.control_periods,
+                    self.setpoints,
+                    loop,
+                    float(value),
+                    self.spec.seed,
+                )
+                offer = (
+                    alternative.reason()
+                    if alternative is not None
+                    else "no set-point ramp up to twice the test's length is safe either"
+                )
+                return Decision(None, "refuse", (*judged, offer)), None, now
             if step.verdict == "tighten":
                 if self._relaxed is None:
                     self._relaxed = dict(self.control_periods)

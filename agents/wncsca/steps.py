@@ -25,6 +25,14 @@ non-linear model before it is let through:
 
 The plant need not be settled at the current set points when the request comes; the trial
 assumes it is (a step requested mid-transient is judged as if from steady state).
+
+A refused step comes with its safe alternative (:func:`safe_alternative`, issue 35 item 5): the
+fastest set-point ramp to the same value that the judge lets through, tried over
+:data:`RAMP_LENGTHS` times the test's length. A ramp is a staircase of one set-point change per
+control period of the loop (``judge_step(..., ramp=D)``), and its overshoot is the excursion past
+the final value after the ramp, in percent of the whole change. On the JCSTR a 4 C downward
+temperature step overshoots about 56 % (the jacket's hot inflow cannot go below zero, and the
+reactor cools only through the jacket); ramped over 2 pu it overshoots about 14 %.
 """
 
 from __future__ import annotations
@@ -43,7 +51,18 @@ from agents.wncsca.uncertainty import model_draws
 from core.record import loop_metrics
 from core.time import to_ticks, to_units
 
-__all__ = ["StepVerdict", "judge_step", "test_length"]
+__all__ = [
+    "RAMP_LENGTHS",
+    "StepVerdict",
+    "Alternative",
+    "judge_step",
+    "safe_alternative",
+    "test_length",
+]
+
+RAMP_LENGTHS = (0.125, 0.25, 0.5, 1.0, 2.0)
+"""The ramps a refused step's alternative tries, in multiples of the test's length (shortest
+first: the fastest safe ramp is offered)."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +95,46 @@ class StepVerdict:
         return f"step {what} refused: {odds} even at the periods {per}"
 
 
+@dataclass(frozen=True)
+class Alternative:
+    """A refused step made safe: the same change as a ramp over ``duration`` (time units),
+    judged (``verdict``: ``apply`` or ``tighten``)."""
+
+    verdict: StepVerdict
+    duration: float
+
+    def reason(self) -> str:
+        v = self.verdict
+        rate = abs(v.r_to - v.r_from) / self.duration
+        per = ", ".join(f"{n} {p:g}" for n, p in sorted(v.periods.items()))
+        return (
+            f"safe alternative: ramp {v.loop} {v.r_from:g} -> {v.r_to:g} over "
+            f"{self.duration:g} time units ({rate:.3g} per time unit, one step per control "
+            f"period): P(overshoot <= limit) = {v.p:.2f}, predicted overshoot "
+            f"{v.overshoot_pct:.1f} % at the periods {per}"
+        )
+
+
+def safe_alternative(
+    model: LoopModel,
+    laws: Mapping[str, LoopLaw],
+    delays: Mapping[str, float],
+    control: Mapping[str, float],
+    setpoints: Mapping[str, float],
+    loop: str,
+    value: float,
+    seed: int,
+) -> Alternative | None:
+    """The fastest ramp of :data:`RAMP_LENGTHS` (times the test's length) that
+    :func:`judge_step` lets through for the step of ``loop`` to ``value``; ``None`` if none."""
+    for factor in RAMP_LENGTHS:
+        duration = factor * test_length(model)
+        step = judge_step(model, laws, delays, control, setpoints, loop, value, seed, duration)
+        if step.verdict != "refuse":
+            return Alternative(step, duration)
+    return None
+
+
 def judge_step(
     model: LoopModel,
     laws: Mapping[str, LoopLaw],
@@ -85,10 +144,11 @@ def judge_step(
     loop: str,
     value: float,
     seed: int,
+    ramp: float = 0.0,
 ) -> StepVerdict:
     """The verdict on stepping ``loop`` from ``setpoints[loop]`` to ``value`` (module
     docstring); ``delays`` are the loops' mean control-path delays, ``control`` the control
-    periods in force."""
+    periods in force; ``ramp > 0``: ramped over that long instead (time units)."""
     cfg = model.config
     limit, confidence = cfg.overshoot_limit, cfg.confidence
     n = max(2, cfg.checks)
@@ -113,12 +173,18 @@ def judge_step(
             p = to_ticks(periods[loop])
             t_step = to_units((to_ticks(settle) // p) * p + (int(phases[r]) * p) // PHASES)
             steps = [(0.0, name, float(v)) for name, v in sorted(setpoints.items())]
-            steps.append((t_step, loop, float(value)))
-            traces = _traces(laws, delays, periods, t_step + settle, u_delay, u_loss, r)
+            start = float(setpoints[loop])
+            staircase = _staircase(t_step, start, float(value), periods[loop], ramp)
+            steps += [(t, loop, v) for t, v in staircase]
+            end = t_step + ramp + settle
+            traces = _traces(laws, delays, periods, end, u_delay, u_loss, r)
             params = draws.sets[r % len(draws.sets)] or None  # the model's draws in turn
-            rec = model.trials.run_steps(periods, delays, steps, t_step + settle, traces, params)
+            rec = model.trials.run_steps(periods, delays, steps, end, traces, params)
             model.simulations += 1
-            overshoots.append(_step_overshoot(rec, loop, t_step))
+            if ramp > 0.0:
+                overshoots.append(_ramp_overshoot(model, rec, loop, start, staircase))
+            else:
+                overshoots.append(_step_overshoot(rec, loop, t_step))
         os = np.asarray(overshoots)
         within = int(np.sum(os <= limit))
         ci = probability_interval(within, n)
@@ -168,6 +234,38 @@ def _traces(
             float(delays.get(name, 0.0)), u_delay[name][window], u_loss[name][window]
         )
     return out
+
+
+def _staircase(
+    t_step: float, start: float, value: float, period: float, ramp: float
+) -> list[tuple[float, float]]:
+    """The set-point changes of a step at ``t_step`` (one), or of a ramp over ``ramp``: one
+    change per ``period`` (at least one), the last to ``value`` at ``t_step + ramp``."""
+    if ramp <= 0.0:
+        return [(t_step, value)]
+    k = max(1, round(ramp / period))
+    return [(t_step + ramp * i / k, start + (value - start) * i / k) for i in range(1, k + 1)]
+
+
+def _ramp_overshoot(
+    model: LoopModel, rec: Any, loop: str, start: float, staircase: list[tuple[float, float]]
+) -> float:
+    """The excursion of ``loop``'s output past the ramp's final value after it ends, in percent
+    of the whole change (``inf``: diverged)."""
+    spec = model.trials.spec
+    judged = spec.loops[loop]
+    plant = spec.plants[judged.plant].model
+    states = rec.plants[judged.plant]
+    t = np.asarray([to_units(v) for v in states.t])
+    x = np.asarray(states.x, dtype=float)
+    k = plant.output_names.index(judged.sensor)
+    y = np.asarray([plant.outputs(row)[k] for row in x[t >= staircase[-1][0] - 1e-12]])
+    final = staircase[-1][1]
+    change = final - start
+    if not np.isfinite(y).all() or change == 0.0:
+        return math.inf if not np.isfinite(y).all() else 0.0
+    past = (y - final) / change  # > 0 past the final value in the step's direction
+    return max(0.0, float(np.max(past)) * 100.0)
 
 
 def _step_overshoot(rec: Any, loop: str, t_step: float) -> float:

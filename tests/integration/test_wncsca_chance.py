@@ -3,15 +3,17 @@ set-point step, the engines' agreement, and the constant-delay demo's periods.""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from agents.wncsca.guarantee import path_laws
 from bus_schemas import Setpoint
+from core.time import to_ticks
 from gateway.carrier import PathCarrier
 from runtime.analysis import analyze
-from runtime.direct import coordinator
+from runtime.direct import coordinator, simulate
 from runtime.launcher import launch
-from scenario import load_scenario
+from scenario import Scenario, load_scenario
 from scenario.views import carrier_spec
 from tests.agent_requests import typed_paths
 from tests.conftest import SCENARIOS, write_variant
@@ -70,6 +72,37 @@ def test_a_downward_temperature_step_is_refused_naming_loop_step_and_overshoot(d
     # the paper's two steps were judged and let through at the negotiated periods
     judged = [d for d in w["decisions"] if d["subject"] == "setpoint" and d["verdict"] == "accept"]
     assert len(judged) == 2 and all("at the control periods" in d["reasons"][-1] for d in judged)
+
+
+def test_a_refused_step_names_its_safe_ramp_and_the_ramp_keeps_the_limit(direct_run):
+    """Issue 35, item 5: the refusal offers the fastest safe ramp; run as the agent states it
+    (one set-point change per control period, at the assigned periods, on the same network) on
+    the non-linear model, the overshoot past 52 C stays within the 25 % limit."""
+    refused = next(d for d in direct_run["wncsca"]["decisions"] if d["verdict"] == "refuse")
+    offer = refused["reasons"][1]
+    assert offer.startswith("safe alternative: ramp temperature 56 -> 52 over "), offer
+    duration = float(offer.split(" over ")[1].split(" time units")[0])
+    periods = {
+        part.split()[0]: float(part.split()[1])
+        for part in offer.split("at the periods ")[1].split(", ")
+    }
+    data = load_scenario(JITTER).model_dump()
+    del data["nodes"]["wncsca"]
+    data["modes"], data["end_time"] = [], 6.0 + duration + 8.0
+    for loop, period in periods.items():
+        data["loops"][loop]["tau_s"] = period
+    k = max(1, round(duration / periods["temperature"]))
+    data["setpoints"] += [
+        {"t": 6.0 + duration * i / k, "loop": "temperature", "value": 56.0 - 4.0 * i / k}
+        for i in range(1, k + 1)
+    ]
+    rec = simulate(Scenario.model_validate(data))
+    plant = rec.plants["reactor"]
+    temperature = np.asarray(plant.x)[:, plant.state_names.index("T")]
+    after = np.asarray(plant.t) >= to_ticks(6.0 + duration)
+    overshoot = (52.0 - temperature[after].min()) / 4.0 * 100.0
+    assert 0.0 < overshoot <= 25.0, overshoot
+    assert temperature[after][-1] == pytest.approx(52.0, abs=0.05)  # it got there
 
 
 @pytest.mark.slow
