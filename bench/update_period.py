@@ -26,7 +26,8 @@ from agents.update_period.analysis import (
     rho_map,
     rho_map_observer_pole,
 )
-from controllers.qdc import QDCNetwork, simulate_linear
+from controllers.qdc.model import simulate_linear
+from controllers.qdc.network import QDCNetwork
 
 ARCH_LABELS = {
     "qdc": "quasi-decentralized, output feedback, models",

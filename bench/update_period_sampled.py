@@ -17,7 +17,7 @@ import time
 
 from agents.update_period.analysis import CSTRRecycleCase, UpdatePeriodConfig, find_h_max
 from agents.update_period.sampled import SampledQDC, find_h_max_sampled, h_max_vs_tau_s
-from controllers.qdc import QDCNetwork
+from controllers.qdc.network import QDCNetwork
 
 TAU_S = (0.0001, 0.00025, 0.0005, 0.001, 0.002)
 DELAYS = (0, 2, 4, 8, 12)

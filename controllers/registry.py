@@ -33,7 +33,7 @@ from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
 from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI
 from controllers.pi import PI, PIConfig
-from controllers.qdc_law import QDCLaw, QDCLawConfig
+from controllers.qdc.law import QDCLaw, QDCLawConfig
 from core.registry import Kind, Registry
 
 __all__ = [

@@ -24,9 +24,10 @@ Linearized at a steady state it takes the two-unit form of eq. (11)::
 (:meth:`CSTRRecycle.two_unit`), in deviation variables and physical units (K, kmol/m^3, kJ/h).
 The paper calls its variables dimensionless without giving the scales; a diagonal scaling of
 states and inputs is a similarity transformation of the closed loop for every gain design in
-:mod:`controllers.qdc` (``K_ij`` is unique, ``L_i`` is unique for one measured output, and the
-diagonal closed-loop design commutes with diagonal scalings), so it leaves the spectral radius of
-the test matrix ``M(h)`` and ``h_max`` unchanged (checked in ``tests/unit/test_update_period.py``).
+:mod:`controllers.qdc.design` (``K_ij`` is unique, ``L_i`` is unique for one measured output, and
+the diagonal closed-loop design commutes with diagonal scalings), so it leaves the spectral radius
+of the test matrix ``M(h)`` and ``h_max`` unchanged (checked in
+``tests/unit/test_update_period.py``).
 
 Parameter values
 ----------------

@@ -22,7 +22,7 @@ which for two units gives exactly the blocks ``Lambda_11 ... Lambda_33`` printed
 the zero rows and columns the paper has, they only add zero eigenvalues to ``M``). The
 zero-order-hold scheme has ``Atil = O``. The state-feedback architecture (Fig. 2(b)) has
 ``xbar = x`` and ``xi = (x, e)``; the centralized architecture (Fig. 2(c)) has ``xi = (x, xbar, e)``
-with ``e = xbar - xhat`` for the single controller's model (see :mod:`controllers.qdc`).
+with ``e = xbar - xhat`` for the single controller's model (see :mod:`controllers.qdc.network`).
 
 Because ``I_o`` zeroes the ``e`` part, the non-zero eigenvalues of ``M(h)`` are those of the leading
 ``2m x 2m`` block of ``expm(Lambda h)`` (``m x m`` for state feedback), which is what
@@ -69,7 +69,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from controllers.qdc import (
+from controllers.qdc.design import (
     PAPER_CONTROLLER_POLES,
     PAPER_OBSERVER_POLES,
     LinearUnits,
@@ -483,7 +483,7 @@ class CSTRRecycleCase:
     controller_poles, observer_poles : tuple of tuples
         Design poles per unit (default: section V, ``(-5, -1)`` and ``(-50, -25)``).
     controller_method : {"diagonal", "place"}
-        See :class:`controllers.qdc.QDCDesign`.
+        See :class:`controllers.qdc.design.QDCDesign`.
     """
 
     def __init__(

@@ -3,8 +3,9 @@
 Seed 001 assumes an update reaches the other units the instant it is sent. Over a wireless
 network it arrives ``d`` later: unit ``j`` sends ``xbar_j(t_k)`` at ``t_k = k h`` and unit ``i``
 resets its model ``xhat_j^i`` to that value at ``t_k + d``. For ``0 <= d < h`` the closed loop in
-the coordinates ``w = (x, z)`` of :func:`controllers.qdc.closed_loop_matrices` (``dw/dt = Acl w``
-between updates, ``w(t_k^+) = Rcl w(t_k^-)`` for an instant update) then satisfies::
+the coordinates ``w = (x, z)`` of :func:`controllers.qdc.model.closed_loop_matrices`
+(``dw/dt = Acl w`` between updates, ``w(t_k^+) = Rcl w(t_k^-)`` for an instant update) then
+satisfies::
 
     w(t_k + d^+) = (I - D) expm(Acl d) w(t_k) + D Rcl w(t_k)
     w(t_{k+1})   = expm(Acl (h - d)) w(t_k + d^+)
@@ -45,7 +46,7 @@ class DelayedUpdates:
     Parameters
     ----------
     Acl, Rcl : ndarray
-        Flow and reset of the closed loop (:func:`controllers.qdc.closed_loop_matrices`).
+        Flow and reset of the closed loop (:func:`controllers.qdc.model.closed_loop_matrices`).
     """
 
     Acl: NDArray[np.float64]

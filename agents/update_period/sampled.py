@@ -2,12 +2,13 @@
 
 Seed 001's test (eq. (8), :mod:`agents.update_period.analysis`) and its delayed extension
 (:mod:`agents.update_period.delay`) take the local measurement and control as continuous. On the
-platform (:mod:`controllers.qdc_law`, :mod:`runtime.direct`, :mod:`controllers.node`) each unit's
+platform (:mod:`controllers.qdc.law`, :mod:`runtime.direct`, :mod:`controllers.node`) each unit's
 temperatures are sampled every ``tau_s`` and its moves held, and the estimates are exchanged every
 ``h = N tau_s``. This module builds the exact linear sampled-data model of that loop.
 
-Loop (deviation variables; plant ``(A, B, C)`` from :meth:`controllers.qdc.LinearUnits.full`,
-controller ``F, G, H`` the units' blocks :meth:`controllers.qdc.QDCNetwork.local` of eq. (4))::
+Loop (deviation variables; plant ``(A, B, C)`` from
+:meth:`controllers.qdc.design.LinearUnits.full`, controller ``F, G, H`` the units' blocks
+:meth:`controllers.qdc.network.QDCNetwork.local` of eq. (4))::
 
     dx/dt = A x + B u_held          u_held = H z(t_k^+)       (the plant holds the move)
     dz/dt = F z + G y_held          y_held = C x(t_k)         (the law holds the sample)
@@ -34,15 +35,16 @@ samples into the period::
 on ``(x, z, c_1, ..., c_m)`` (``c_k`` the estimates sent ``k`` periods ago): ``Cap`` captures
 ``c_0 = xbar`` (all units' estimates), ``Del`` resets every model ``xhat_j^i`` from the oldest
 capture ``c_m``, ``Shift`` ages the captures by one period. For ``D = 0`` it is ``T^N Rz`` on
-``(x, z)`` with ``Rz`` the instant reset of :class:`controllers.qdc.QDCNetwork`. The sampled loop
-is exponentially stable iff ``rho(M_{N,D}) < 1``, the same argument as eq. (8): the state at the
-send instants evolves by a constant matrix.
+``(x, z)`` with ``Rz`` the instant reset of :class:`controllers.qdc.network.QDCNetwork`. The
+sampled loop is exponentially stable iff ``rho(M_{N,D}) < 1``, the same argument as eq. (8): the
+state at the send instants evolves by a constant matrix.
 
 As ``tau_s -> 0`` (``N -> inf`` with ``N tau_s = h``) ``T^N -> expm(Acl h)`` of
-:func:`controllers.qdc.closed_loop_matrices` and ``M_{N,0}`` tends to ``expm(Acl h) Rcl``, whose
-non-zero spectrum is that of the paper's ``M(h)`` (eq. (8)): the sampled ``h_max`` tends to the
-paper's (0.04312 h with models, 0.04198 h with the hold, for the CSTRs of section V). At the
-section's observer poles (-50 1/h) the difference is first order in ``tau_s``.
+:func:`controllers.qdc.model.closed_loop_matrices` and ``M_{N,0}`` tends to
+``expm(Acl h) Rcl``, whose non-zero spectrum is that of the paper's ``M(h)`` (eq. (8)): the
+sampled ``h_max`` tends to the paper's (0.04312 h with models, 0.04198 h with the hold, for the
+CSTRs of section V). At the section's observer poles (-50 1/h) the difference is first order in
+``tau_s``.
 
 :func:`find_h_max_sampled` scans the periods ``N tau_s``, ``N = 1, 2, ...``: ``h_max`` is the
 largest multiple of ``tau_s`` such that every shorter multiple is stabilizing (first loss of
@@ -59,7 +61,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import block_diag, expm
 
-from controllers.qdc import LinearUnits, QDCNetwork
+from controllers.qdc.design import LinearUnits
+from controllers.qdc.network import QDCNetwork
 
 __all__ = ["SampledQDC", "SampledHMax", "find_h_max_sampled", "h_max_vs_tau_s"]
 
@@ -160,7 +163,7 @@ class SampledQDC:
     @classmethod
     def from_law_parts(cls, plant: LinearUnits, network: QDCNetwork, tau_s: float) -> SampledQDC:
         """The loop of ``network``'s local controllers (what each unit's ``qdc`` law runs,
-        :meth:`controllers.qdc.QDCNetwork.local`) around the true plant ``plant``.
+        :meth:`controllers.qdc.network.QDCNetwork.local`) around the true plant ``plant``.
 
         Parameters
         ----------

@@ -28,7 +28,8 @@ from agents.update_period.sampled import SampledQDC
 from agents.wncsca.config import LinksConfig
 
 if TYPE_CHECKING:
-    from controllers.qdc import LinearUnits, QDCNetwork
+    from controllers.qdc.design import LinearUnits
+    from controllers.qdc.network import QDCNetwork
 
 __all__ = ["Link", "LinkGroup", "LinkVerdict", "judge_links", "link_groups"]
 

@@ -11,7 +11,8 @@ import pytest
 
 from agents.update_period.analysis import CSTRRecycleCase
 from agents.update_period.delay import DelayedUpdates, find_h_range
-from controllers.qdc import QDCNetwork, closed_loop_matrices
+from controllers.qdc.model import closed_loop_matrices
+from controllers.qdc.network import QDCNetwork
 from core.errors import ConfigError
 from core.record import summarize
 from core.time import to_ticks, to_units

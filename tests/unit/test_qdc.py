@@ -13,17 +13,9 @@ from scipy.linalg import block_diag, expm
 from scipy.signal import place_poles  # noqa: TID253 - not a node: imports what it uses at the top
 
 from agents.update_period.analysis import CSTRRecycleCase
-from controllers.qdc import (
-    CentralizedNetwork,
-    LinearUnits,
-    NetworkConfig,
-    QDCDesign,
-    QDCNetwork,
-    closed_loop_matrices,
-    observer_gain,
-    simulate_linear,
-    simulate_nonlinear,
-)
+from controllers.qdc.design import LinearUnits, QDCDesign, observer_gain
+from controllers.qdc.model import closed_loop_matrices, simulate_linear, simulate_nonlinear
+from controllers.qdc.network import CentralizedNetwork, NetworkConfig, QDCNetwork
 
 CASE = CSTRRecycleCase()
 PLANT = CASE.plant

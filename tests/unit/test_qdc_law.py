@@ -1,8 +1,9 @@
-"""Seed 001's quasi-decentralized control as a platform law (``controllers/qdc_law.py``), the two
+"""Seed 001's quasi-decentralized control as a platform law (``controllers/qdc/law.py``), the two
 CSTRs with recycle on the direct engine, and what the scenario refuses.
 
-Independent references: the stacked controller of :class:`controllers.qdc.QDCNetwork` integrated
-by ``solve_ivp`` (the law's exact propagation), :func:`controllers.qdc.simulate_nonlinear`
+Independent references: the stacked controller of :class:`controllers.qdc.network.QDCNetwork`
+integrated by ``solve_ivp`` (the law's exact propagation),
+:func:`controllers.qdc.model.simulate_nonlinear`
 (continuous-time controllers against the non-linear plant: the sampled loop converges to it at
 first order in ``tau_s``), and ``h_max`` from :mod:`agents.update_period.analysis` for the law's
 own gains.
@@ -18,7 +19,8 @@ from scipy.integrate import solve_ivp
 from agents.update_period.analysis import CSTRRecycleCase, build_lambda, find_h_max
 from bus_schemas import Estimate, Rates, keys
 from controllers.behaviour import ControllerBehaviour
-from controllers.qdc import QDCNetwork, simulate_nonlinear
+from controllers.qdc.model import simulate_nonlinear
+from controllers.qdc.network import QDCNetwork
 from controllers.registry import build_multi_loop_law
 from core.errors import ConfigError
 from core.record import summarize

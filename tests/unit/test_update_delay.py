@@ -9,7 +9,8 @@ from scipy.integrate import solve_ivp
 
 from agents.update_period.analysis import CSTRRecycleCase, spectral_radius
 from agents.update_period.delay import DelayedUpdates, find_h_range
-from controllers.qdc import QDCNetwork, closed_loop_matrices
+from controllers.qdc.model import closed_loop_matrices
+from controllers.qdc.network import QDCNetwork
 
 CASE = CSTRRecycleCase()
 

@@ -22,14 +22,9 @@ from agents.update_period.analysis import (
     spectral_radius,
     test_matrix,
 )
-from controllers.qdc import (
-    CentralizedNetwork,
-    LinearUnits,
-    QDCDesign,
-    QDCNetwork,
-    closed_loop_matrices,
-    simulate_linear,
-)
+from controllers.qdc.design import LinearUnits, QDCDesign
+from controllers.qdc.model import closed_loop_matrices, simulate_linear
+from controllers.qdc.network import CentralizedNetwork, QDCNetwork
 
 CASE = CSTRRecycleCase()
 H_MAX = CASE.h_max("qdc").h_max

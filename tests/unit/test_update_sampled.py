@@ -16,7 +16,8 @@ import pytest
 from agents.update_period.analysis import CSTRRecycleCase, UpdatePeriodConfig, find_h_max
 from agents.update_period.delay import DelayedUpdates
 from agents.update_period.sampled import SampledQDC, find_h_max_sampled, h_max_vs_tau_s
-from controllers.qdc import QDCNetwork, closed_loop_matrices
+from controllers.qdc.model import closed_loop_matrices
+from controllers.qdc.network import QDCNetwork
 from runtime.direct import simulate
 from scenario import load_scenario
 from tests.conftest import SCENARIOS, write_variant

@@ -14,7 +14,8 @@ from agents.update_period.delay import DelayedUpdates, find_h_range
 from agents.update_period.sampled import SampledQDC, find_h_max_sampled
 from agents.wncsca.config import LinksConfig, WncscaConfig
 from agents.wncsca.links import judge_links, link_groups
-from controllers.qdc import QDCNetwork, closed_loop_matrices
+from controllers.qdc.model import closed_loop_matrices
+from controllers.qdc.network import QDCNetwork
 from runtime.direct import coordinator as build_coordinator
 from scenario import load_scenario
 from tests.agent_requests import offer, proposal_body

@@ -1,4 +1,4 @@
-"""The local control system of one unit under quasi-decentralized control, as a platform law.
+"""What the bus runs: one unit's local control system under quasi-decentralized control.
 
 Seed 001 eq. (4): unit ``i`` runs an observer of its own states, a model of each neighbour
 ``j`` (``xhat_j^i``) that is reset to the neighbour's transmitted estimate ``xbar_j`` at every
@@ -7,15 +7,15 @@ controller on the bus: a controller node with ``loops: [...]`` (one loop per inp
 the loops of the unit's measured outputs carry its sensors, the others are actuator-only loops,
 ``sensor: null``), and the estimates cross the network on the scenario's ``links:``.
 
-Design (the same as :mod:`agents.update_period.analysis` and :mod:`controllers.qdc`)
--------------------------------------------------------------------------------------
+Design (the same as :mod:`agents.update_period.analysis` and :mod:`controllers.qdc.design`)
+--------------------------------------------------------------------------------------------
 The law linearizes the plant object at its ``operating_point()``, splits it into the units of
 eq. (11) (the plant's ``units``: names of each unit's states, inputs and outputs; or the law's
-``units:``), designs ``K_i``, ``K_ij``, ``L_i`` with :class:`controllers.qdc.QDCDesign` (poles
-``controller_poles``, ``observer_poles``, method ``controller_method``) and builds
-:class:`controllers.qdc.QDCNetwork` (embedded models from ``model_params``, or zero for
+``units:``), designs ``K_i``, ``K_ij``, ``L_i`` with :class:`controllers.qdc.design.QDCDesign`
+(poles ``controller_poles``, ``observer_poles``, method ``controller_method``) and builds
+:class:`controllers.qdc.network.QDCNetwork` (embedded models from ``model_params``, or zero for
 ``scheme: zoh``); its controller is unit ``unit``'s block of that network's ``F, G, H``
-(:meth:`controllers.qdc.QDCNetwork.local`). So the law on the bus is, matrix for matrix, the
+(:meth:`controllers.qdc.network.QDCNetwork.local`). So the law on the bus is, matrix for matrix, the
 controller whose maximum update period the analysis computes. Every controller of a plant
 builds the whole design (it needs its neighbours' gains for its models of them), so the units'
 laws should give the same design settings.
@@ -37,7 +37,7 @@ deviation variables around the operating point (``y_dev = y - y_s``, ``u = u_s +
 The observer's input term is the continuous ``B_i K z`` of eq. (4), as in the analysis, not the
 held move; with ``tau_s`` well below the fastest closed-loop time constant (``1/50 h`` for the
 observers of section V) the sampled loop is the analysed one (checked against
-:func:`controllers.qdc.simulate_nonlinear` in ``tests/unit/test_qdc_law.py``).
+:func:`controllers.qdc.model.simulate_nonlinear` in ``tests/unit/test_qdc_law.py``).
 """
 
 from __future__ import annotations
@@ -50,17 +50,16 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from scipy.linalg import expm
 
-from controllers.qdc import (
+from controllers.qdc.design import (
     PAPER_CONTROLLER_POLES,
     PAPER_OBSERVER_POLES,
     ControllerPoles,
     LinearUnits,
-    LocalQDC,
     ObserverPoles,
     QDCDesign,
-    QDCNetwork,
-    closed_loop_matrices,
 )
+from controllers.qdc.model import closed_loop_matrices
+from controllers.qdc.network import LocalQDC, QDCNetwork
 
 __all__ = ["UnitSignals", "QDCLawConfig", "QDCLaw"]
 
@@ -88,7 +87,7 @@ class QDCLawConfig(BaseModel):
     controller_poles: ControllerPoles = PAPER_CONTROLLER_POLES
     observer_poles: ObserverPoles = PAPER_OBSERVER_POLES
     controller_method: Literal["diagonal", "place"] = Field(
-        default="diagonal", description="see controllers.qdc.QDCDesign"
+        default="diagonal", description="see controllers.qdc.design.QDCDesign"
     )
     scheme: Literal["model", "zoh"] = Field(
         default="model", description="embedded models of the neighbours, or hold their estimate"
@@ -132,7 +131,7 @@ class QDCLaw:
     ValueError
         With the offending field first: a unit or signal the plant does not have, loops that do
         not move exactly the unit's inputs and measure its outputs, a design
-        :class:`~controllers.qdc.QDCDesign` refuses (non-square or singular ``B_i`` where
+        :class:`~controllers.qdc.design.QDCDesign` refuses (non-square or singular ``B_i`` where
         ``K_ij`` must cancel the coupling, poles), a link whose sender is unknown.
     """
 
@@ -296,7 +295,7 @@ class QDCLaw:
 
     def closed_loop(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The linearized networked loop this law is part of: flow ``Acl`` and update reset
-        ``Rcl`` of :func:`controllers.qdc.closed_loop_matrices` (the true linearization, every
+        ``Rcl`` of :func:`controllers.qdc.model.closed_loop_matrices` (the true linearization, every
         unit's controller with its embedded models). What a coordination agent analyses
         (:mod:`agents.wncsca.links`); every unit's law of one design returns the same."""
         return closed_loop_matrices(self.plant_units, self.network)
