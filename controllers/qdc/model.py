@@ -214,11 +214,33 @@ def simulate_nonlinear(
     NetworkConfig(h=h)
     x_s = np.asarray(x_s, dtype=float)
     u_s = np.asarray(u_s, dtype=float)
+    nx = x_s.size
+    Mm, H, D = network.M, network.H, network.D
     step = min(h / 4.0, 0.005) if max_step is None else max_step
+    dummy = np.zeros(0)
     f = _closed_loop_rhs(plant, network, x_s, u_s)
     z = network.initial_state(xbar0)
     x = np.asarray(x0, dtype=float)
-    return _run_updates(f, network, x_s, u_s, x, z, h=h, t_end=t_end, step=step, bound=bound)
+    z = network.update_from(z, x - x_s)
+    ts, xs, us = [0.0], [x.copy()], [u_s + H @ z + D @ (Mm @ (x - x_s))]
+    t, left, k = 0.0, False, 0
+    while t < t_end - 1e-12:
+        t1 = min((k + 1) * h, t_end)
+        w = rk4(f, t, np.concatenate([x, z]), t1, dummy, max_step=step)
+        x, z = w[:nx], w[nx:]
+        k += 1
+        t = t1
+        if not np.all(np.isfinite(w)) or np.max(np.abs(x - x_s)) > bound:
+            left = True
+            ts.append(t)
+            xs.append(x.copy())
+            us.append(np.full(u_s.shape, np.nan))
+            break
+        z = network.update_from(z, x - x_s)
+        ts.append(t)
+        xs.append(x.copy())
+        us.append(u_s + H @ z + D @ (Mm @ (x - x_s)))
+    return NonlinearRun(t=np.array(ts), x=np.array(xs), u=np.array(us), left_bound=left)
 
 
 _Rhs = Callable[[float, NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
@@ -238,44 +260,3 @@ def _closed_loop_rhs(
         return np.concatenate([plant.rhs(t, x, u), F @ z + G @ m])
 
     return f
-
-
-def _run_updates(
-    f: _Rhs,
-    network: Network,
-    x_s: NDArray[np.float64],
-    u_s: NDArray[np.float64],
-    x: NDArray[np.float64],
-    z: NDArray[np.float64],
-    *,
-    h: float,
-    t_end: float,
-    step: float,
-    bound: float,
-) -> NonlinearRun:
-    """RK4 on ``f`` from update instant to update instant, the models reset at each one."""
-    nx = x_s.size
-    Mm, H, D = network.M, network.H, network.D
-    dummy = np.zeros(0)
-    z = network.update_from(z, x - x_s)
-    ts, xs, us = [0.0], [x.copy()], [u_s + H @ z + D @ (Mm @ (x - x_s))]
-    t = 0.0
-    left = False
-    k = 0
-    while t < t_end - 1e-12:
-        t1 = min((k + 1) * h, t_end)
-        w = rk4(f, t, np.concatenate([x, z]), t1, dummy, max_step=step)
-        x, z = w[:nx], w[nx:]
-        k += 1
-        t = t1
-        if not np.all(np.isfinite(w)) or np.max(np.abs(x - x_s)) > bound:
-            left = True
-            ts.append(t)
-            xs.append(x.copy())
-            us.append(np.full(u_s.shape, np.nan))
-            break
-        z = network.update_from(z, x - x_s)
-        ts.append(t)
-        xs.append(x.copy())
-        us.append(u_s + H @ z + D @ (Mm @ (x - x_s)))
-    return NonlinearRun(t=np.array(ts), x=np.array(xs), u=np.array(us), left_bound=left)

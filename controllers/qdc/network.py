@@ -42,13 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from controllers.qdc.design import LinearUnits, QDCGains
 
-__all__ = [
-    "NetworkConfig",
-    "QDCNetwork",
-    "LocalQDC",
-    "CentralizedNetwork",
-    "Network",
-]
+__all__ = ["NetworkConfig", "QDCNetwork", "LocalQDC", "CentralizedNetwork", "Network"]
 
 
 class NetworkConfig(BaseModel):
