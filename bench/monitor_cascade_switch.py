@@ -14,7 +14,7 @@ For ``scenarios/cascade_routine.yaml`` and ``scenarios/cascade_routine_primary.y
    :data:`controllers.cascade_law.ROUTINE_CASCADE`), and measure the variance of the control
    error over the same window, the same way;
 3. print band against measurement, and the long-run variances of both controllers from the exact
-   sampled model (:func:`plants.cascade_ct.sampled`; ``--long`` minutes on ``--seeds`` other
+   sampled model (:func:`plants.cascade.plant.sampled`; ``--long`` minutes on ``--seeds`` other
    disturbance realizations), which say how much of a window's figure is the realization.
 
 Tuning (``--retune``): the PI-P settings minimize the variance of the measured ``y1`` (samples
@@ -50,7 +50,7 @@ from controllers.cascade import PIPCascade, PIPCascadeConfig
 from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
 from controllers.pi import PI, PIConfig
 from core.time import to_ticks
-from plants.cascade_ct import CascadeCTParams, SampledCascadeCT, sampled
+from plants.cascade.plant import CascadeCTParams, SampledCascadeCT, sampled
 from runtime.direct import simulate
 from scenario import Scenario, parse_scenario
 from scenario.views import run_shape

@@ -1,6 +1,6 @@
 """Seed 004 cascade-opportunity monitor on Examples 1-3: prediction against the implemented cascade.
 
-For each example process of :mod:`plants.cascade_process` (ours, in the spirit of the paper's
+For each example process of :mod:`plants.cascade.examples` (ours, in the spirit of the paper's
 Examples 1-3, 5 % measurement noise):
 
 1. simulate routine operation under the simple-feedback PI
@@ -46,12 +46,12 @@ from controllers.cascade import (
     tune_pi_p,
     tune_sfb_pi,
 )
-from plants.cascade_process import (
-    EXAMPLES,
+from plants.cascade.examples import EXAMPLES
+from plants.cascade.model import delays
+from plants.cascade.routine import simulate
+from plants.cascade.variance import (
     autocovariance,
-    delays,
     output_variance,
-    simulate,
     true_components,
     with_measurement_noise,
 )

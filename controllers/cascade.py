@@ -12,13 +12,13 @@ paper's Example 4 law ``(0.144 - 0.138 q^-1)/(1 - q^-1)`` is ``Kc = 0.138``, ``T
 * :class:`LinearFeedback` -- any ``u = -K(q^-1) y`` (e.g. a minimum-variance law).
 
 Each configuration's :meth:`feedback` gives the law as ``u = -sum_l K_l(q^-1) ym_l`` (the form
-:func:`plants.cascade_process.closed_loop` takes): SFB ``{y1: Q}``, cascade
+:func:`plants.cascade.model.closed_loop` takes): SFB ``{y1: Q}``, cascade
 ``{y2: Q2, y1: Q1 Q2}``.
 
 Tuning
 ------
 :func:`tune_sfb_pi` and :func:`tune_pi_p` minimize the analytic variance of the measured primary
-(:func:`plants.cascade_process.output_variance`) over ``(Kc, Ti)`` and ``(Kc1, Ti1, Kc2)`` by
+(:func:`plants.cascade.variance.output_variance`) over ``(Kc, Ti)`` and ``(Kc1, Ti1, Kc2)`` by
 Nelder-Mead: the paper's "PI achievable performance" for the SFB loop and "best CLPI achieved"
 with the PI-P cascade (its Examples 1-2). The settings shipped for the examples
 (:data:`EXAMPLE_SFB`, :data:`EXAMPLE_CASCADE`) are those optima, rounded
@@ -38,7 +38,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from scipy.optimize import minimize
 
 from controllers.pi import PI, PIConfig
-from plants.cascade_process import TF, CascadeProcessConfig, output_variance
+from plants.cascade.model import CascadeProcessConfig
+from plants.cascade.transfer import TF
+from plants.cascade.variance import output_variance
 
 __all__ = [
     "pi_tf",
@@ -320,7 +322,7 @@ def tune_pi_p(process: CascadeProcessConfig, secondary: str) -> tuple[PIPCascade
     return cfg, var
 
 
-# Settings for plants.cascade_process.EXAMPLE_1..3 (variance-optimal, rounded; see module doc).
+# Settings for plants.cascade.examples.EXAMPLE_1..3 (variance-optimal, rounded; see module doc).
 EXAMPLE_SFB: dict[str, SFBPIConfig] = {
     "example_1": SFBPIConfig(measurement="y1", Kc=1.75, Ti=36.1),
     "example_2": SFBPIConfig(measurement="y1", Kc=0.886, Ti=25.0),

@@ -5,7 +5,7 @@ Gaussian knots ``w_k`` at ``k x period``) must give every engine the same value 
 whatever order and step the integrator asks in. So knot ``k`` is drawn from
 ``np.random.default_rng([seed, stream, c])`` in chunks of :data:`CHUNK` knots (chunk ``c`` holds
 knots ``c*CHUNK ...``) and cached: the same ``(seed, stream, k)`` always gives the same value.
-Used by :mod:`plants.cascade_ct` and :mod:`plants.perturbed_reduced`.
+Used by :mod:`plants.cascade.plant` and :mod:`plants.perturbed_reduced`.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from core.registry import Kind, Registry
-from plants.cascade_ct import CascadeCT, CascadeCTParams
+from plants.cascade.plant import CascadeCT, CascadeCTParams
 from plants.column import ColumnParams
 from plants.column_plant import ColumnPlant
 from plants.cstr_recycle import CSTRRecycle, CSTRRecycleParams

@@ -7,8 +7,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from plants import registry
-from plants.cascade_ct import CHUNK, CascadeCT, CascadeCTParams, step_response
+from plants.cascade.plant import CascadeCT, CascadeCTParams, step_response
 from plants.integrate import integrator_of, rk4
+from plants.knots import CHUNK
 from scenario import load_scenario
 from tests.conftest import SCENARIOS
 

@@ -14,7 +14,7 @@ from controllers.pi import PI, PIConfig
 from core.errors import ConfigError
 from core.record import summarize
 from core.time import to_units
-from plants.cascade_ct import CascadeCTParams, sampled
+from plants.cascade.plant import CascadeCTParams, sampled
 from runtime.direct import simulate
 from scenario import load_scenario, parse_scenario
 from tests.conftest import SCENARIOS, load_yaml, write_variant
@@ -59,7 +59,7 @@ def test_pip_cascade_moves_only_the_primary_input_as_the_sampled_law_does():
 
 @pytest.mark.parametrize("law", ["pi", "pip_y2", "pip_y3"])
 def test_sampled_model_equals_the_direct_engine(law):
-    """plants.cascade_ct.sampled (exact, what the settings are tuned on) against the plant node's
+    """plants.cascade.plant.sampled (exact, what the settings are tuned on) against the plant node's
     RK4 (max_step 0.125): the same measured y1 to 1e-6 over 300 min, under either controller."""
     if law == "pi":
         data = load_yaml(ROUTINE)

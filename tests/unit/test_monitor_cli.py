@@ -11,7 +11,8 @@ import pytest
 
 from cli.main import main
 from controllers.cascade import EXAMPLE_SFB, SFBPI
-from plants.cascade_process import EXAMPLE_1, EXAMPLE_3, simulate
+from plants.cascade.examples import EXAMPLE_1, EXAMPLE_3
+from plants.cascade.routine import simulate
 from runtime.assess import parse_delays
 
 HEADER = "time;SP;PV;OP;T2;T3"

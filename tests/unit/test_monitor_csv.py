@@ -12,7 +12,8 @@ from agents.monitor.assess import MonitorConfig, assess, assess_csv, rows_needed
 from agents.monitor.errors import DataError
 from agents.monitor.routine_data import load_routine_csv
 from controllers.cascade import EXAMPLE_SFB, SFBPI
-from plants.cascade_process import EXAMPLE_1, simulate
+from plants.cascade.examples import EXAMPLE_1
+from plants.cascade.routine import simulate
 
 HEADER = "time;SP;PV;OP;T2"
 

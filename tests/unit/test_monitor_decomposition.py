@@ -22,18 +22,15 @@ from controllers.cascade import (
     SFBPIConfig,
     pi_tf,
 )
-from plants.cascade_process import (
-    EXAMPLE_1,
-    EXAMPLES,
-    TF,
-    CascadeProcessConfig,
+from plants.cascade.examples import EXAMPLE_1, EXAMPLES
+from plants.cascade.model import CascadeProcessConfig, closed_loop, delays
+from plants.cascade.routine import simulate
+from plants.cascade.transfer import TF
+from plants.cascade.variance import (
     autocovariance,
-    closed_loop,
-    delays,
     minimum_variance_cascade,
     minimum_variance_sfb,
     output_variance,
-    simulate,
     true_components,
 )
 

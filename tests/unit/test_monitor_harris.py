@@ -11,7 +11,8 @@ from agents.monitor.errors import IdentificationError
 from agents.monitor.harris import harris_index, model_index
 from agents.monitor.timeseries import fit_var
 from controllers.cascade import SFBPI, LinearFeedback, LinearFeedbackConfig, SFBPIConfig
-from plants.cascade_process import CascadeProcessConfig, StageConfig, closed_loop, simulate
+from plants.cascade.model import CascadeProcessConfig, StageConfig, closed_loop
+from plants.cascade.routine import simulate
 
 # y = q^-d b/(1 - a q^-1) u + 1/(1 - c q^-1) e
 A_POLE, B_GAIN, C_POLE, DELAY = 0.8, 0.2, 0.9, 3

@@ -1,10 +1,9 @@
-"""Continuous-time primary/secondary process with stochastic disturbances, for routine data on the
-bus (seed 004).
+"""What the bus runs: seed 004's primary/secondary process in continuous time, with disturbances.
 
-The sampled process of :mod:`plants.cascade_process` (seed 004, Fig. 1) in continuous time, as a
+The sampled process of :mod:`plants.cascade.model` (seed 004, Fig. 1) in continuous time, as a
 plant node integrates it (fixed-step RK4 between events, :mod:`plants.integrate`), so a scenario
 can produce *routine operating data* of a simple-feedback loop for the performance monitor. A
-chain ``u -> y3 -> y2 -> y1`` (as :data:`plants.cascade_process.EXAMPLE_3`)::
+chain ``u -> y3 -> y2 -> y1`` (as :data:`plants.cascade.examples.EXAMPLE_3`)::
 
     tau3 dy3/dt = -y3 + K3 u  + n3                     first secondary (e.g. a coolant flow)
     tau2 dy2/dt = -y2 + K2 y3 + n2                     second secondary (e.g. a jacket temperature)
@@ -24,10 +23,10 @@ Disturbances
 ------------
 ``w1``, ``w2`` are independent unit-variance Gaussian knots every ``noise_period``, linearly
 interpolated (continuous, so RK4 stays accurate), drawn from ``np.random.default_rng([seed, j,
-chunk])`` in chunks of :data:`CHUNK` knots: ``w(t)`` is a pure function of ``t``, so every engine
-integrating the same segments gets the same trajectory bit for bit, whatever order it evaluates
-``rhs`` in. The gain ``gj = dj_std sqrt(2 tau_dj / noise_period)`` makes ``nj`` a first-order
-(drifting) disturbance of stationary standard deviation about ``dj_std`` (exact as
+chunk])`` in chunks of :data:`plants.knots.CHUNK` knots: ``w(t)`` is a pure function of ``t``, so
+every engine integrating the same segments gets the same trajectory bit for bit, whatever order it
+evaluates ``rhs`` in. The gain ``gj = dj_std sqrt(2 tau_dj / noise_period)`` makes ``nj`` a
+first-order (drifting) disturbance of stationary standard deviation about ``dj_std`` (exact as
 ``noise_period / tau_dj -> 0``). The realization is fixed by ``params.seed``, not by the
 scenario's seed (a plant model is built from its parameters alone); measurement noise is the
 plant node's (``noise:`` per sensor, seeded from the scenario seed).
@@ -35,8 +34,8 @@ plant node's (``noise:`` per sensor, seeded from the scenario seed).
 Defaults: a fast flow (``tau3 = 0.5``) with a small disturbance, a jacket (``tau2 = 2``) where a
 strong drifting disturbance enters, a slow primary (``tau1 = 8``) behind a transport of
 ``theta = 4`` time units with a weaker disturbance: a cascade on ``y2`` pays off (as in
-:data:`~plants.cascade_process.EXAMPLE_1`), one on ``y3``, upstream of the main disturbance, much
-less (as ``y3`` in :data:`~plants.cascade_process.EXAMPLE_3`).
+:data:`~plants.cascade.examples.EXAMPLE_1`), one on ``y3``, upstream of the main disturbance, much
+less (as ``y3`` in :data:`~plants.cascade.examples.EXAMPLE_3`).
 """
 
 from __future__ import annotations
@@ -50,12 +49,12 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.linalg import expm
 
-from plants.knots import CHUNK, Knots
+from plants.knots import Knots
 
 if TYPE_CHECKING:
     import control
 
-__all__ = ["CHUNK", "CascadeCTParams", "CascadeCT", "SampledCascadeCT", "sampled", "step_response"]
+__all__ = ["CascadeCTParams", "CascadeCT", "SampledCascadeCT", "sampled", "step_response"]
 
 
 class CascadeCTParams(BaseModel):
