@@ -10,8 +10,8 @@ For ``scenarios/cascade_routine.yaml`` and ``scenarios/cascade_routine_primary.y
    band ``[1a + 2a/2, 1a + 2a]`` and 1a per secondary, and the ranking;
 2. run the same scenario (same disturbance realization, seeds and sensor noise) with the loop's
    controller switched to ``type: pip_cascade`` on each secondary
-   (:func:`controllers.cascade_law.cascade_variant`, settings
-   :data:`controllers.cascade_law.ROUTINE_CASCADE`), and measure the variance of the control
+   (:func:`controllers.cascade.law.cascade_variant`, settings
+   :data:`controllers.cascade.law.ROUTINE_CASCADE`), and measure the variance of the control
    error over the same window, the same way;
 3. print band against measurement, and the long-run variances of both controllers from the exact
    sampled model (:func:`plants.cascade.plant.sampled`; ``--long`` minutes on ``--seeds`` other
@@ -46,8 +46,8 @@ from scipy.optimize import minimize
 
 from agents.monitor.config import MonitorConfig, SecondarySpec
 from agents.monitor.run_data import RunSeries, assess_series, feed_run_record
-from controllers.cascade import PIPCascade, PIPCascadeConfig
-from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.model import PIPCascade, PIPCascadeConfig
 from controllers.pi import PI, PIConfig
 from core.time import to_ticks
 from plants.cascade.plant import CascadeCTParams, SampledCascadeCT, sampled

@@ -4,12 +4,12 @@ For each example process of :mod:`plants.cascade.examples` (ours, in the spirit 
 Examples 1-3, 5 % measurement noise):
 
 1. simulate routine operation under the simple-feedback PI
-   (:data:`controllers.cascade.EXAMPLE_SFB`);
+   (:data:`controllers.cascade.tuning.EXAMPLE_SFB`);
 2. run the monitor on the measured data and the delays alone (:func:`agents.monitor.assess.assess`):
    Harris index +- standard error, the four components 1a/1b/2a/2b per candidate secondary, the
    predicted cascade variance band ``[1a + 2a/2, 1a + 2a]`` and the ranking;
 3. switch the same process, with the same noise sequences, to the PI-P cascade on each candidate
-   (:data:`controllers.cascade.EXAMPLE_CASCADE`) and measure the variance of ``y1``;
+   (:data:`controllers.cascade.tuning.EXAMPLE_CASCADE`) and measure the variance of ``y1``;
 4. print two exact references beside the estimates: ``population``, the decomposition of the
    VAR(80) fitted by Yule-Walker to the exact autocovariances of the measured ``(y1, y2)`` (what
    the estimator converges to with unlimited data), and ``per source``, eq. (7)/(8) and
@@ -38,14 +38,8 @@ import numpy as np
 from agents.monitor.assess import MonitorConfig, SecondarySpec, assess
 from agents.monitor.decomposition import decomposition_from_model
 from agents.monitor.timeseries import var_from_autocovariance
-from controllers.cascade import (
-    EXAMPLE_CASCADE,
-    EXAMPLE_SFB,
-    SFBPI,
-    PIPCascade,
-    tune_pi_p,
-    tune_sfb_pi,
-)
+from controllers.cascade.model import SFBPI, PIPCascade
+from controllers.cascade.tuning import EXAMPLE_CASCADE, EXAMPLE_SFB, tune_pi_p, tune_sfb_pi
 from plants.cascade.examples import EXAMPLES
 from plants.cascade.model import delays
 from plants.cascade.routine import simulate

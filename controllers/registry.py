@@ -28,7 +28,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from controllers.cascade_law import PIPCascadeLaw, PIPCascadeLawConfig
+from controllers.cascade.law import PIPCascadeLaw, PIPCascadeLawConfig
 from controllers.ewrls import SelfTuningNLPI, STNLPIConfig
 from controllers.mrac import MRACConfig, MultiLoopMRAC
 from controllers.nlpi import NLPIConfig, NonlinearPI, PI2DOFConfig, TwoDofPI

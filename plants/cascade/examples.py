@@ -26,8 +26,9 @@ drift without bound, and a non-stationary secondary has no autoregressive model
 (``unstable_model``). The measurement noise is the paper's 5 %: ``meas_noise_std`` is 5 % of the
 standard deviation of each noise-free output under the variance-optimal SFB PI
 (:func:`with_measurement_noise`; ``bench/monitor_examples.py --retune`` recomputes it), and the
-same absolute sensors serve the cascade. The controller settings are in :mod:`controllers.cascade`
-(:data:`~controllers.cascade.EXAMPLE_SFB`, :data:`~controllers.cascade.EXAMPLE_CASCADE`).
+same absolute sensors serve the cascade. The controller settings are in
+:mod:`controllers.cascade.tuning` (:data:`~controllers.cascade.tuning.EXAMPLE_SFB`,
+:data:`~controllers.cascade.tuning.EXAMPLE_CASCADE`).
 """
 
 from __future__ import annotations

@@ -58,7 +58,11 @@ __all__ = [
 
 
 class StageConfig(BaseModel):
-    """One stage ``y_j = q^-delay B/A y_(j-1) + C/D a_j``, measured as ``y_j + v_j``."""
+    """One stage ``y_j = q^-delay B/A y_(j-1) + C/D a_j``, measured as ``y_j + v_j``.
+
+    Its process ``G_j = q^-delay B/A`` (:meth:`process_tf`) and its disturbance ``N_j = C/D``
+    (:meth:`noise_tf`) are the blocks of seed 004's Fig. 1.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -214,8 +218,8 @@ def closed_loop(
         The process.
     feedback : mapping
         ``{measurement name: K_l}`` of the linear law ``u = -sum_l K_l ym_l`` (see
-        :meth:`controllers.cascade.SFBPIConfig.feedback` and
-        :meth:`controllers.cascade.PIPCascadeConfig.feedback`).
+        :meth:`controllers.cascade.model.SFBPIConfig.feedback` and
+        :meth:`controllers.cascade.model.PIPCascadeConfig.feedback`).
     output : str, optional
         Stage name of the output (default: the primary), or ``"u"`` for the manipulated variable.
     measured : bool

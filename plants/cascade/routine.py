@@ -1,8 +1,8 @@
 """Routine operation of seed 004's sampled process: the loop run sample by sample.
 
 :func:`simulate` runs the loop sample by sample with any law object (``step(t, measurements)``),
-e.g. the PI and PI-P laws of :mod:`controllers.cascade`, so that the monitor's prediction can be
-compared with the cascade actually implemented on the same process and the same noise.
+e.g. the PI and PI-P laws of :mod:`controllers.cascade.model`, so that the monitor's prediction
+can be compared with the cascade actually implemented on the same process and the same noise.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import yaml
 
-from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.law import ROUTINE_CASCADE, cascade_variant
 from core.record import summarize
 from runtime.direct import simulate
 from runtime.launcher import launch

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from controllers.cascade import PIPCascade, PIPCascadeConfig
-from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.model import PIPCascade, PIPCascadeConfig
 from controllers.pi import PI, PIConfig
 from core.errors import ConfigError
 from core.record import summarize

@@ -1,7 +1,7 @@
 """Seed 004's prediction against reality on the platform's own scenarios (issue 7): the monitor
 assesses the simple-feedback run of ``cascade_routine.yaml`` / ``cascade_routine_primary.yaml``,
 then the same process (same disturbances, seeds, sensor noise) is switched to the PI-P cascade
-(``type: pip_cascade``, settings :data:`controllers.cascade_law.ROUTINE_CASCADE`) on each
+(``type: pip_cascade``, settings :data:`controllers.cascade.law.ROUTINE_CASCADE`) on each
 secondary, and the variance of the control error is measured over the same window (direct
 engine; ``bench/monitor_cascade_switch.py`` prints the table).
 
@@ -14,7 +14,7 @@ import pytest
 
 from agents.monitor.config import MonitorConfig, SecondarySpec
 from agents.monitor.run_data import RunSeries, assess_series, feed_run_record
-from controllers.cascade_law import ROUTINE_CASCADE, cascade_variant
+from controllers.cascade.law import ROUTINE_CASCADE, cascade_variant
 from core.time import to_ticks
 from runtime.direct import simulate
 from scenario import Scenario, parse_scenario

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from cli.main import main
-from controllers.cascade import EXAMPLE_SFB, SFBPI
+from controllers.cascade.model import SFBPI
+from controllers.cascade.tuning import EXAMPLE_SFB
 from plants.cascade.examples import EXAMPLE_1, EXAMPLE_3
 from plants.cascade.routine import simulate
 from runtime.assess import parse_delays

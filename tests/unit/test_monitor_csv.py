@@ -11,7 +11,8 @@ import pytest
 from agents.monitor.assess import MonitorConfig, assess, assess_csv, rows_needed
 from agents.monitor.errors import DataError
 from agents.monitor.routine_data import load_routine_csv
-from controllers.cascade import EXAMPLE_SFB, SFBPI
+from controllers.cascade.model import SFBPI
+from controllers.cascade.tuning import EXAMPLE_SFB
 from plants.cascade.examples import EXAMPLE_1
 from plants.cascade.routine import simulate
 

@@ -13,15 +13,8 @@ from agents.monitor.assess import SecondarySpec, assess
 from agents.monitor.decomposition import decompose, decomposition_from_model, rank_secondaries
 from agents.monitor.errors import IdentificationError
 from agents.monitor.timeseries import var_from_autocovariance
-from controllers.cascade import (
-    EXAMPLE_CASCADE,
-    EXAMPLE_SFB,
-    SFBPI,
-    PIPCascade,
-    PIPCascadeConfig,
-    SFBPIConfig,
-    pi_tf,
-)
+from controllers.cascade.model import SFBPI, PIPCascade, PIPCascadeConfig, SFBPIConfig, pi_tf
+from controllers.cascade.tuning import EXAMPLE_CASCADE, EXAMPLE_SFB
 from plants.cascade.examples import EXAMPLE_1, EXAMPLES
 from plants.cascade.model import CascadeProcessConfig, closed_loop, delays
 from plants.cascade.routine import simulate

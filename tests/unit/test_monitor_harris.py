@@ -10,7 +10,7 @@ import pytest
 from agents.monitor.errors import IdentificationError
 from agents.monitor.harris import harris_index, model_index
 from agents.monitor.timeseries import fit_var
-from controllers.cascade import SFBPI, LinearFeedback, LinearFeedbackConfig, SFBPIConfig
+from controllers.cascade.model import SFBPI, LinearFeedback, LinearFeedbackConfig, SFBPIConfig
 from plants.cascade.model import CascadeProcessConfig, StageConfig, closed_loop
 from plants.cascade.routine import simulate
 

@@ -1,7 +1,7 @@
-"""The PI-P cascade as a multi-loop law on the bus (seed 004, Fig. 2).
+"""What the bus runs: the PI-P cascade of seed 004 (Fig. 2) as a multi-loop law.
 
 A controller node with ``loops: [primary, secondary]`` and ``law: {type: pip_cascade, ...}``
-runs :class:`controllers.cascade.PIPCascade`: a PI master on the primary loop's measurement
+runs :class:`controllers.cascade.model.PIPCascade`: a PI master on the primary loop's measurement
 ``y1`` sets the slave's set point ``r2 = Q1 (r1 - y1)``, and a proportional slave on the
 secondary loop's measurement moves the primary loop's input, ``u = u_bias + Kc2 (r2 - y2)``. The
 primary loop measures and moves (``sensor: y1, actuator: u``); the secondary loop only measures
@@ -11,7 +11,7 @@ loop's set point is not used (the master's output is ``r2``).
 
 The master integrates over the actual time between executions (backward Euler,
 :class:`controllers.pi.PI`), starting with ``Kc1/Ti1 e dt`` at the first execution with ``dt``
-the primary loop's sampling period, as :class:`~controllers.cascade.PIPCascade` does on the
+the primary loop's sampling period, as :class:`~controllers.cascade.model.PIPCascade` does on the
 sampled examples. Both loops should be sampled together (the same ``tau_s``, no path delays):
 the node then executes once per sampling instant with both new samples (the hold rule of
 :mod:`controllers.node`); otherwise each execution uses the latest sample of each.
@@ -23,7 +23,7 @@ import copy
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
-from controllers.cascade import PIPCascade, PIPCascadeConfig, PIPSettings
+from controllers.cascade.model import PIPCascade, PIPCascadeConfig, PIPSettings
 
 __all__ = ["PIPCascadeLawConfig", "PIPCascadeLaw", "cascade_variant", "ROUTINE_CASCADE"]
 

@@ -1,4 +1,4 @@
-"""PI simple-feedback and PI-P cascade laws for the sampled cascade process (seed 004).
+"""The paper twin of seed 004's laws: PI simple feedback and the PI-P cascade, sample by sample.
 
 Seed 004, Figures 1 and 2. Both laws regulate about a set point ``r1`` of the primary variable;
 the discrete PI is the paper's ``Q(q^-1) = (k0 - k1 q^-1)/(1 - q^-1)`` written with a gain and
@@ -15,32 +15,21 @@ Each configuration's :meth:`feedback` gives the law as ``u = -sum_l K_l(q^-1) ym
 :func:`plants.cascade.model.closed_loop` takes): SFB ``{y1: Q}``, cascade
 ``{y2: Q2, y1: Q1 Q2}``.
 
-Tuning
-------
-:func:`tune_sfb_pi` and :func:`tune_pi_p` minimize the analytic variance of the measured primary
-(:func:`plants.cascade.variance.output_variance`) over ``(Kc, Ti)`` and ``(Kc1, Ti1, Kc2)`` by
-Nelder-Mead: the paper's "PI achievable performance" for the SFB loop and "best CLPI achieved"
-with the PI-P cascade (its Examples 1-2). The settings shipped for the examples
-(:data:`EXAMPLE_SFB`, :data:`EXAMPLE_CASCADE`) are those optima, rounded
-(``bench/monitor_examples.py --retune`` recomputes them). A variance-optimal PI-P is as tight as
-a PI-P gets, so the cascade approaches its invariant bound (component 1a) as closely as the
-restricted structure allows; it ignores the variance of ``u`` and robustness, like the paper.
+These laws run on the sampled processes of :mod:`plants.cascade`
+(:func:`plants.cascade.routine.simulate`); the bus runs the PI-P cascade as
+:mod:`controllers.cascade.law`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Literal
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
-from scipy.optimize import minimize
 
 from controllers.pi import PI, PIConfig
-from plants.cascade.model import CascadeProcessConfig
 from plants.cascade.transfer import TF
-from plants.cascade.variance import output_variance
 
 __all__ = [
     "pi_tf",
@@ -51,11 +40,13 @@ __all__ = [
     "PIPCascade",
     "LinearFeedbackConfig",
     "LinearFeedback",
-    "tune_sfb_pi",
-    "tune_pi_p",
-    "EXAMPLE_SFB",
-    "EXAMPLE_CASCADE",
 ]
+
+
+def _check_below(lo_name: str, lo: float, hi_name: str, hi: float) -> None:
+    """Refuse a lower limit that is not below its upper one (``ValueError`` naming both)."""
+    if not lo < hi:
+        raise ValueError(f"{lo_name} ({lo}) must be below {hi_name} ({hi})")
 
 
 def pi_tf(kc: float, ti: float, dt: float = 1.0) -> TF:
@@ -79,8 +70,7 @@ class SFBPIConfig(BaseModel):
 
     @model_validator(mode="after")
     def _limits(self) -> SFBPIConfig:
-        if not self.u_min < self.u_max:
-            raise ValueError(f"u_min ({self.u_min}) must be below u_max ({self.u_max})")
+        _check_below("u_min", self.u_min, "u_max", self.u_max)
         return self
 
     def feedback(self) -> dict[str, TF]:
@@ -88,17 +78,19 @@ class SFBPIConfig(BaseModel):
         return {self.measurement: pi_tf(self.Kc, self.Ti, self.dt)}
 
 
-class SFBPI:
-    """Simple-feedback PI law; ``step(t, measurements) -> u``."""
+class _BackwardPI:
+    """:class:`controllers.pi.PI` (backward-Euler integral, no feedforward, output limits
+    ``[lo, hi]``) that also integrates its first sample, ``Kc/Ti e dt`` (controllers.pi skips it):
+    the paper's ``Q(q^-1)`` from the first sample on."""
 
-    def __init__(self, config: SFBPIConfig) -> None:
-        self.config = config
+    def __init__(self, kc: float, ti: float, dt: float, lo: float, hi: float) -> None:
+        self._kc, self._ti, self._dt = kc, ti, dt
         self._pi = PI(
             PIConfig(
-                Kp=config.Kc,
-                Ki=config.Kc / config.Ti,
-                u_min=config.u_min,
-                u_max=config.u_max,
+                Kp=kc,
+                Ki=kc / ti,
+                u_min=lo,
+                u_max=hi,
                 integration="backward",
                 feedforward="none",
             )
@@ -110,13 +102,28 @@ class SFBPI:
         self._pi.reset()
         self._first = True
 
+    def step(self, t: float, y: float, r: float) -> float:
+        """One execution on measurement ``y`` and set point ``r``."""
+        if self._first:
+            self._pi.integral = self._kc / self._ti * (r - y) * self._dt
+            self._first = False
+        return self._pi.step(t, y, r)
+
+
+class SFBPI:
+    """Simple-feedback PI law; ``step(t, measurements) -> u``."""
+
+    def __init__(self, config: SFBPIConfig) -> None:
+        self.config = config
+        self._pi = _BackwardPI(config.Kc, config.Ti, config.dt, config.u_min, config.u_max)
+
+    def reset(self) -> None:
+        """Forget the integral."""
+        self._pi.reset()
+
     def step(self, t: float, measurements: Mapping[str, float]) -> float:
         """One execution with the measurements by name; returns ``u``."""
         c = self.config
-        e = c.setpoint - measurements[c.measurement]
-        if self._first:  # backward Euler from the first sample on (controllers.pi skips it)
-            self._pi.integral = c.Kc / c.Ti * e * c.dt
-            self._first = False
         return self._pi.step(t, measurements[c.measurement], c.setpoint)
 
 
@@ -124,7 +131,7 @@ class PIPSettings(BaseModel):
     """Gains and limits of a PI-P cascade: PI master ``(Kc1, Ti1)`` setting the secondary's set
     point ``r2`` within ``[r2_min, r2_max]``, P slave ``Kc2`` about ``u_bias`` within
     ``[u_min, u_max]`` (shared by :class:`PIPCascadeConfig` and the platform law's
-    configuration, :class:`controllers.cascade_law.PIPCascadeLawConfig`)."""
+    configuration, :class:`controllers.cascade.law.PIPCascadeLawConfig`)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -139,10 +146,8 @@ class PIPSettings(BaseModel):
 
     @model_validator(mode="after")
     def _limits(self) -> PIPSettings:
-        if not self.r2_min < self.r2_max:
-            raise ValueError(f"r2_min ({self.r2_min}) must be below r2_max ({self.r2_max})")
-        if not self.u_min < self.u_max:
-            raise ValueError(f"u_min ({self.u_min}) must be below u_max ({self.u_max})")
+        _check_below("r2_min", self.r2_min, "r2_max", self.r2_max)
+        _check_below("u_min", self.u_min, "u_max", self.u_max)
         return self
 
 
@@ -176,22 +181,11 @@ class PIPCascade:
 
     def __init__(self, config: PIPCascadeConfig) -> None:
         self.config = config
-        self._master = PI(
-            PIConfig(
-                Kp=config.Kc1,
-                Ki=config.Kc1 / config.Ti1,
-                u_min=config.r2_min,
-                u_max=config.r2_max,
-                integration="backward",
-                feedforward="none",
-            )
-        )
-        self.reset()
+        self._master = _BackwardPI(config.Kc1, config.Ti1, config.dt, config.r2_min, config.r2_max)
 
     def reset(self) -> None:
         """Forget the master's integral."""
         self._master.reset()
-        self._first = True
 
     def step(
         self, t: float, measurements: Mapping[str, float], setpoint: float | None = None
@@ -200,11 +194,7 @@ class PIPCascade:
         the configured set point ``r1`` (a set point that changes during a run)."""
         c = self.config
         r1 = c.setpoint if setpoint is None else setpoint
-        y1 = measurements[c.primary]
-        if self._first:
-            self._master.integral = c.Kc1 / c.Ti1 * (r1 - y1) * c.dt
-            self._first = False
-        r2 = self._master.step(t, y1, r1)
+        r2 = self._master.step(t, measurements[c.primary], r1)
         u = c.u_bias + c.Kc2 * (r2 - measurements[c.secondary])
         return min(max(u, c.u_min), c.u_max)
 
@@ -252,94 +242,3 @@ class LinearFeedback:
             self._uh.pop()
             self._uh.insert(0, u)
         return u
-
-
-# ------------------------------------------------------------------------------------------------
-# Variance-optimal tuning on the analytic model
-# ------------------------------------------------------------------------------------------------
-_PENALTY = 1e300
-
-
-def _optimize(fun, grid: Sequence[Sequence[float]], n_starts: int = 3) -> tuple[np.ndarray, float]:
-    """Nelder-Mead in log-parameters from the best ``n_starts`` points of a coarse grid (the
-    variance surface of restricted-structure controllers has several local minima)."""
-    pts = np.array(np.meshgrid(*[np.log(np.asarray(g, dtype=float)) for g in grid])).reshape(
-        len(grid), -1
-    )
-    vals = np.array([fun(pts[:, i]) for i in range(pts.shape[1])])
-    best_x, best_f = None, math.inf
-    for i in np.argsort(vals)[:n_starts]:
-        res = minimize(
-            fun,
-            pts[:, i],
-            method="Nelder-Mead",
-            options={"xatol": 1e-4, "fatol": 1e-10, "maxiter": 4000, "maxfev": 8000},
-        )
-        if res.fun < best_f:
-            best_x, best_f = res.x, float(res.fun)
-    return np.exp(best_x), best_f
-
-
-def tune_sfb_pi(process: CascadeProcessConfig) -> tuple[SFBPIConfig, float]:
-    """PI on the primary minimizing the analytic variance of the measured primary.
-
-    Returns the configuration and the variance it achieves. ``Kc`` is searched positive (the
-    examples have positive process gains); multi-start Nelder-Mead in ``log(Kc), log(Ti)``.
-    """
-    primary, dt = process.primary, process.dt
-
-    def fun(x: np.ndarray) -> float:
-        kc, ti = np.exp(x)
-        v = output_variance(process, {primary: pi_tf(kc, ti, dt)})
-        return v if math.isfinite(v) else _PENALTY
-
-    grid = ([0.1, 0.3, 1.0, 3.0], [dt * t for t in (3.0, 10.0, 30.0, 100.0)])
-    (kc, ti), var = _optimize(fun, grid)
-    return SFBPIConfig(measurement=primary, Kc=float(kc), Ti=float(ti), dt=dt), var
-
-
-def tune_pi_p(process: CascadeProcessConfig, secondary: str) -> tuple[PIPCascadeConfig, float]:
-    """PI-P cascade minimizing the analytic variance of the measured primary (best CLPI);
-    multi-start Nelder-Mead in ``log(Kc1), log(Ti1), log(Kc2)``."""
-    primary, dt = process.primary, process.dt
-
-    def fun(x: np.ndarray) -> float:
-        kc1, ti1, kc2 = np.exp(x)
-        cfg = {secondary: TF([kc2]), primary: pi_tf(kc1, ti1, dt) * kc2}
-        v = output_variance(process, cfg)
-        return v if math.isfinite(v) else _PENALTY
-
-    grid = ([0.1, 0.3, 1.0, 3.0], [dt * t for t in (3.0, 10.0, 30.0, 100.0)], [0.3, 1, 3, 10])
-    (kc1, ti1, kc2), var = _optimize(fun, grid)
-    cfg = PIPCascadeConfig(
-        primary=primary,
-        secondary=secondary,
-        Kc1=float(kc1),
-        Ti1=float(ti1),
-        Kc2=float(kc2),
-        dt=dt,
-    )
-    return cfg, var
-
-
-# Settings for plants.cascade.examples.EXAMPLE_1..3 (variance-optimal, rounded; see module doc).
-EXAMPLE_SFB: dict[str, SFBPIConfig] = {
-    "example_1": SFBPIConfig(measurement="y1", Kc=1.75, Ti=36.1),
-    "example_2": SFBPIConfig(measurement="y1", Kc=0.886, Ti=25.0),
-    "example_3": SFBPIConfig(measurement="y1", Kc=1.41, Ti=83.8),
-}
-"""Variance-optimal PI of each example's simple-feedback loop (the loop the monitor analyses)."""
-
-EXAMPLE_CASCADE: dict[str, dict[str, PIPCascadeConfig]] = {
-    "example_1": {
-        "y2": PIPCascadeConfig(primary="y1", secondary="y2", Kc1=1.87, Ti1=27.6, Kc2=4.05),
-    },
-    "example_2": {
-        "y2": PIPCascadeConfig(primary="y1", secondary="y2", Kc1=1.13, Ti1=18.6, Kc2=3.82),
-    },
-    "example_3": {
-        "y3": PIPCascadeConfig(primary="y1", secondary="y3", Kc1=1.88, Ti1=44.3, Kc2=3.92),
-        "y2": PIPCascadeConfig(primary="y1", secondary="y2", Kc1=1.51, Ti1=27.5, Kc2=3.29),
-    },
-}
-"""Variance-optimal PI-P cascade of each example for each candidate secondary."""
