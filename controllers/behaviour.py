@@ -35,11 +35,11 @@ open, close or re-time multi-loop controllers (refused when the scenario loads),
 period of their links (``link_periods``, below).
 
 An **actuator-only** loop (``sensor: null``, for laws that move inputs they do not measure, such
-as seed 001's units: :mod:`controllers.qdc_law`) has no samples: the hold rule waits only for the
+as seed 001's units: :mod:`controllers.qdc.law`) has no samples: the hold rule waits only for the
 loops with a sensor, ``y`` has no entry for it, and the law's move for it is published on its
 ``loop/<l>/u`` like the others. A **measurement-only** loop (``actuator: null``, for laws that take
 measurements they move no input for, such as seed 004's PI-P cascade:
-:mod:`controllers.cascade_law`) is sampled, held and passed to the law like any loop (its set
+:mod:`controllers.cascade.law`) is sampled, held and passed to the law like any loop (its set
 point too), but the law returns no move for it and the node publishes none.
 
 **Links** (the scenario's ``links:``): the node transmits what its law's ``transmit(t)`` returns

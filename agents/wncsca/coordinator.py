@@ -36,6 +36,7 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any
 
 from agents.wncsca.assignment import Assignment
@@ -461,7 +462,8 @@ class Coordinator:
         when = now if t_apply is None else max(t_apply, now)
         judged: tuple[str, ...] = ()
         if self.config.method == "chance" and loop in self.loops:
-            step = judge_step(
+            judge = partial(
+                judge_step,
                 self.model,
                 self.laws,
                 self.delays,
@@ -471,18 +473,10 @@ class Coordinator:
                 float(value),
                 self.spec.seed,
             )
+            step = judge(0.0)
             judged = (step.reason(self.config.overshoot_limit),)
             if step.verdict == "refuse":
-                alternative = safe_alternative(
-                    self.model,
-                    self.laws,
-                    self.delays,
-                    self.control_periods,
-                    self.setpoints,
-                    loop,
-                    float(value),
-                    self.spec.seed,
-                )
+                alternative = safe_alternative(judge, test_length(self.model))
                 offer = (
                     alternative.reason()
                     if alternative is not None

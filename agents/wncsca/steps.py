@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -115,23 +115,14 @@ class Alternative:
         )
 
 
-def safe_alternative(
-    model: LoopModel,
-    laws: Mapping[str, LoopLaw],
-    delays: Mapping[str, float],
-    control: Mapping[str, float],
-    setpoints: Mapping[str, float],
-    loop: str,
-    value: float,
-    seed: int,
-) -> Alternative | None:
-    """The fastest ramp of :data:`RAMP_LENGTHS` (times the test's length) that
-    :func:`judge_step` lets through for the step of ``loop`` to ``value``; ``None`` if none."""
+def safe_alternative(judge: Callable[[float], StepVerdict], length: float) -> Alternative | None:
+    """The fastest ramp of :data:`RAMP_LENGTHS` (times the test's ``length``) that ``judge``
+    (:func:`judge_step` of the refused step, given the ramp's duration) lets through; ``None``
+    if none."""
     for factor in RAMP_LENGTHS:
-        duration = factor * test_length(model)
-        step = judge_step(model, laws, delays, control, setpoints, loop, value, seed, duration)
+        step = judge(factor * length)
         if step.verdict != "refuse":
-            return Alternative(step, duration)
+            return Alternative(step, factor * length)
     return None
 
 
