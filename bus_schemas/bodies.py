@@ -265,7 +265,9 @@ class NetApplied(BaseModel):
         default=None, description="a TSCH gateway: its manager's schedule now in force"
     )
     reason: str | None = Field(
-        default=None, description="event 'rates_refused': why the manager cannot carry them"
+        default=None,
+        description="event 'rates_refused': why the manager cannot carry them; event "
+        "'no_alternative': what was rejected and that the network runs it",
     )
 
 

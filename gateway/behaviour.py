@@ -183,7 +183,14 @@ class NetworkBehaviour(Behaviour):
                 self.log.warning("proposal #%d rejected and no alternative is left", pid)
                 self.publish(
                     keys.net_applied(),
-                    NetApplied(event="no_alternative", source="agent", paths=paths, proposal=pid),
+                    NetApplied(
+                        event="no_alternative",
+                        source="agent",
+                        paths=paths,
+                        proposal=pid,
+                        reason=f"{source} {kind}: proposal #{pid} rejected, no alternative left; "
+                        "the network runs it",
+                    ),
                 )
                 return
             self._propose("alternative", "alternative", self.carrier.set_routes(routes, self.now))

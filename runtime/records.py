@@ -184,7 +184,9 @@ class RecordBuilder:
         applied = {"t": t, **body()}
         if applied["event"] in ("rates", "rates_refused", "no_alternative"):
             self.rec.wncsca.setdefault("applied", []).append(applied)
-        else:
+        if applied["event"] not in ("rates", "rates_refused"):
+            # what the network runs: a configuration applied, or a rejected one run for want
+            # of an alternative (event no_alternative, the agent's verdict "keep": at risk)
             self.rec.configurations.append(applied)
 
     def _lost(self, t: int, order: int, body: Body) -> None:

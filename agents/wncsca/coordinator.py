@@ -149,6 +149,10 @@ class Coordinator:
         self.method: str | None = None
         self.mode = "startup"
         self.accepted: dict[str, int] = {}  # network -> last accepted proposal id
+        self._rejected: dict[str, Decision] = {}  # network -> its last rejection
+        self.at_risk: dict[str, tuple[int | None, tuple[str, ...]]] = {}
+        """Network -> the rejected proposal it runs for want of an alternative, and the loops
+        that rejection named (:meth:`on_no_alternative`)."""
         self.proposal: int | None = None  # the last accepted proposal (any network)
         self.carried = {
             n: [lp for lp in self.loops if spec.loop_networks[lp] == n] for n in spec.carriers
@@ -217,7 +221,11 @@ class Coordinator:
             manager = self._manager(read)
             result = self._periods(network, read, decision, links, delays, risk, manager)
         except _Ended as ended:
+            if ended.negotiation.decision.verdict == "reject":
+                self._rejected[network] = ended.negotiation.decision
             return ended.negotiation
+        self.at_risk.pop(network, None)  # a configuration judged safe runs again
+        self._rejected.pop(network, None)
         self.link_delays.update(link_delays)
         for v in links:
             self.link_periods.update(v.periods)
@@ -400,17 +408,31 @@ class Coordinator:
         return out
 
     def on_no_alternative(self, network: str, proposal: int | None) -> Decision:
-        """The gateway has no alternative to a rejected proposal: keep what was accepted."""
+        """The gateway has no alternative to a rejected proposal, so the network runs it: the
+        periods in force are kept (those of the last accepted configuration, whose routes may
+        no longer exist, or the benchmark's), and the loops the rejection named are at risk
+        until a configuration of ``network`` is accepted: their set-point steps are refused
+        (:meth:`on_setpoint`), and the decision says so."""
         last = self.accepted.get(network)
-        reason = (
-            f"{network}: no alternative to rejected proposal #{proposal}; keeping the last "
-            + (
-                f"accepted configuration (#{last}) and its periods"
-                if last is not None
-                else "periods (no configuration accepted yet): benchmark periods"
-            )
+        rejected = self._rejected.get(network)
+        named = rejected.offending if rejected is not None and rejected.proposal == proposal else ()
+        loops = tuple(named) or tuple(self.carried.get(network, ()))
+        self.at_risk[network] = (proposal, loops)
+        kept = (
+            f"the periods of the last accepted configuration (#{last}) stay in force, though "
+            "the network no longer runs it"
+            if last is not None
+            else "the benchmark periods stay in force (no configuration accepted yet)"
         )
-        return Decision(proposal, "keep", (reason,))
+        reasons = [
+            f"{network}: no alternative to rejected proposal #{proposal}: the network runs it; "
+            f"{kept}",
+            f"loops at risk: {', '.join(loops)} (judged unsafe on the configuration that runs); "
+            "their set-point steps are refused until a configuration is accepted",
+        ]
+        if rejected is not None and rejected.proposal == proposal:
+            reasons += [f"rejected because: {r}" for r in rejected.reasons[:2]]
+        return Decision(proposal, "keep", tuple(reasons))
 
     def _refused(self, network: str, pid: int | None, reason: str) -> Negotiation:
         return Negotiation(Decision(pid, "refuse", (f"proposal refused: {reason}",)), network)
@@ -460,6 +482,22 @@ class Coordinator:
         control (mode ``setpoint_change``) before the change applies."""
         value, t_apply = request.value, request.t_apply
         when = now if t_apply is None else max(t_apply, now)
+        for network, (pid, loops) in sorted(self.at_risk.items()):
+            if loop in loops:
+                return (
+                    Decision(
+                        None,
+                        "refuse",
+                        (
+                            f"step {loop} {self.setpoints.get(loop, math.nan):g} -> {value:g} "
+                            f"refused: {loop} is at risk, {network} runs proposal #{pid}, which "
+                            "the agent rejected; no step is applied over it until a "
+                            "configuration is accepted",
+                        ),
+                    ),
+                    None,
+                    now,
+                )
         judged: tuple[str, ...] = ()
         if self.config.method == "chance" and loop in self.loops:
             judge = partial(

@@ -5,6 +5,7 @@ loop states, the projected lifetime gain, and the measured overshoot of every se
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 __all__ = ["format_timeline"]
@@ -135,14 +136,44 @@ def _energy(w: dict[str, Any]) -> list[Event]:
 
 
 def _steps(summary: dict[str, Any]) -> list[Event]:
-    """Each set-point step with its measured overshoot, last among events at its time."""
-    return [
-        (
-            s["t"],
-            math.inf,
-            f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
-            f"{s['overshoot_pct']:.1f} %",
-        )
-        for name, lp in summary.get("loops", {}).items()
-        for s in lp.get("steps", [])
-    ]
+    """Each set-point step with its measured overshoot, last among events at its time; beside
+    it the overshoot the agent predicted when it judged the step (the chance method), and a
+    warning when the measured one passed the agent's limit."""
+    w = summary.get("wncsca") or {}
+    predicted, limit = _predictions(w.get("decisions", []))
+    events = []
+    for name, lp in summary.get("loops", {}).items():
+        for s in lp.get("steps", []):
+            measured = s["overshoot_pct"]
+            text = f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
+            text += "n/a" if measured is None else f"{measured:.1f} %"
+            guess = predicted.get((name, s["from"], s["to"]))
+            if guess is not None:
+                text += f" (predicted {guess:.1f} %)"
+            if limit is not None and measured is not None and measured > limit:
+                text += f"  WARNING: past the {limit:g} % limit"
+            events.append((s["t"], math.inf, text))
+    return events
+
+
+_JUDGED = re.compile(
+    r"step (?P<loop>\S+) (?P<a>[-+0-9.eE]+) -> (?P<b>[-+0-9.eE]+)\b.*?"
+    r"predicted overshoot (?P<os>[-+0-9.eE]+|inf) %"
+)
+_LIMIT = re.compile(r"P\(overshoot <= (?P<limit>[0-9.eE+-]+) %\)")
+
+
+def _predictions(
+    decisions: list[dict[str, Any]],
+) -> tuple[dict[tuple[str, float, float], float], float | None]:
+    """The overshoot predicted for each judged step (loop, from, to) and the agent's limit, read
+    from the decisions' reasons (``None``: no judged step says it)."""
+    out: dict[tuple[str, float, float], float] = {}
+    limit = None
+    for d in decisions:
+        for reason in d.get("reasons", []):
+            if limit is None and (m := _LIMIT.search(reason)):
+                limit = float(m["limit"])
+            if d.get("subject") == "setpoint" and (m := _JUDGED.search(reason)):
+                out[(m["loop"], float(m["a"]), float(m["b"]))] = float(m["os"])
+    return out, limit

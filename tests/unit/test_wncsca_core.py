@@ -620,6 +620,29 @@ def test_proposal_accepted_then_rejected_then_no_alternative(wncs):
     assert c.control_periods == assigned
 
 
+def test_a_rejected_configuration_run_for_want_of_an_alternative_puts_its_loops_at_risk(wncs):
+    """Issue 35, item 6: the network runs proposal #1, rejected for the level's delay; the
+    agent says the level is at risk, refuses its set-point steps (a temperature step still
+    passes), and an accepted configuration ends the risk."""
+    c = coordinator(wncs)
+    offer(c, "network", proposal(0))
+    assert offer(c, "network", proposal(1, level_hops=0.30)).decision.verdict == "reject"
+    keep = c.on_no_alternative("network", 1)
+    text = " ".join(keep.reasons)
+    assert "the network runs it" in text and "no longer runs it" in text
+    assert "loops at risk: level " in text and "rejected because: level" in text
+    assert c.at_risk == {"network": (1, ("level",))}
+    d, value, _ = ask_setpoint(c, "level", {"value": 0.72}, to_ticks(26.0))
+    assert d.verdict == "refuse" and value is None
+    assert "level is at risk, network runs proposal #1, which the agent rejected" in d.reasons[0]
+    d, value, _ = ask_setpoint(c, "temperature", {"value": 58.0}, to_ticks(26.0))
+    assert d.verdict == "accept" and value == 58.0  # its path was judged safe and runs
+    assert offer(c, "network", proposal(2)).decision.verdict == "accept"
+    assert c.at_risk == {}
+    d, value, _ = ask_setpoint(c, "level", {"value": 0.72}, to_ticks(27.0))
+    assert d.verdict == "accept" and value == 0.72
+
+
 def test_reject_before_any_acceptance_keeps_the_benchmark(wncs):
     c = coordinator(wncs)
     neg = offer(c, "network", proposal(4, level_hops=0.30))
