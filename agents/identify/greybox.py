@@ -28,6 +28,9 @@ from numpy.typing import NDArray
 
 from plants.integrate import rk4
 
+DIVERGED = 1e9
+"""The residual of a sample a candidate's simulation diverged on: far from any data."""
+
 __all__ = ["Experiment", "GreyBoxFit", "fit_grey_box", "simulate_experiment"]
 
 
@@ -162,9 +165,9 @@ def fit_grey_box(
         model = build({**params, **dict(zip(names, (theta * p0).tolist(), strict=True))})
         sim = simulate_experiment(model, experiment)
         r = y - np.concatenate([sim[n] for n in experiment.samples])
-        return np.where(np.isfinite(r), r, 1e6)  # a diverged candidate: far from the data
+        return np.where(np.isfinite(r), r, DIVERGED)
 
-    if not (np.abs(residuals(np.ones(len(names)))) < 1e6).all():
+    if not (np.abs(residuals(np.ones(len(names)))) < DIVERGED).all():
         raise ValueError("fit_grey_box: the starting parameters do not simulate the experiment")
     result = scipy.optimize.least_squares(residuals, np.ones(len(names)), x_scale="jac")
     r = result.fun

@@ -215,7 +215,7 @@ class LinearMonteCarlo:
     laws : mapping
         Loop -> :class:`LoopLaw` (default: constant delay, no loss).
     realizations : int
-        Realizations ``R`` (per corner of a robust model: :attr:`rows` in all).
+        Realizations ``R`` (a robust model: ``R`` per corner, :attr:`R` rows in all).
     seed : int
         Seed of the common random numbers.
     draws : ModelDraws, optional

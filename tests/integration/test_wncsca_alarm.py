@@ -29,6 +29,7 @@ def _scenario(tmp_path):
         d["modes"] = [{"t": 20.0, "mode": "steady_state"}]
         d["nodes"]["wncsca"] = {
             "kind": "agent",
+            "method": "paper",  # the level loop is nlpi: only the paper method simulates it
             "phase": "fixed",
             "max_delay": 2.0,
             "test": {"end_time": 20.0, "setpoints": [{"t": 1.0, "loop": "level", "value": 60.0}]},
