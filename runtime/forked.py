@@ -15,6 +15,9 @@ from pathlib import Path
 __all__ = ["ForkServer", "Forked"]
 
 _POLL_S = 0.01
+_DRAIN_S = 30.0
+"""The longest wait for the reader thread after the server left (its pipe is at end of file:
+only a starved thread takes more than moments)."""
 
 
 class Forked:
@@ -32,8 +35,13 @@ class Forked:
         self._done.set()
 
     def poll(self) -> int | None:
-        if self.returncode is None and self._server.gone() and not _exists(self.pid):
-            self._exited(-9)  # the server died first: nobody will report this child's code
+        if self.returncode is None and self._server.gone():
+            # The server leaves once it has reported every child: its last lines may still be
+            # in the pipe, unread by the reader thread (a busy machine). Read them first; only
+            # a child the server never reported died unseen (the server was killed first).
+            self._server.drain()
+            if self.returncode is None and not _exists(self.pid):
+                self._exited(-9)  # nobody will report this child's code
         return self.returncode
 
     def wait(self, timeout: float | None = None) -> int:
@@ -126,6 +134,12 @@ class ForkServer:
 
     def gone(self) -> bool:
         return self.proc.poll() is not None
+
+    def drain(self) -> None:
+        """Once the server has left (:meth:`gone`): wait until every line it wrote is read, so
+        each child it reaped has its exit code. Its standard output closes when it exits (the
+        children write theirs to their logs), so this ends at once, bar a stalled reader."""
+        self._reader.join(_DRAIN_S)
 
     def _read(self) -> None:
         assert self.proc.stdout is not None
