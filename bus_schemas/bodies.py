@@ -30,6 +30,7 @@ __all__ = [
     "Rates",
     "SamplingPeriod",
     "Timing",
+    "ModelEstimate",
     "ModeRequest",
     "InjectRequest",
     "NetworkEvent",
@@ -329,7 +330,7 @@ class Decision(BaseModel):
 
     model_config = _FROZEN
 
-    subject: Literal["proposal", "mode", "setpoint", "links", "rates"]
+    subject: Literal["proposal", "mode", "setpoint", "links", "rates", "model"]
     network: str | None = Field(default=None, description="the proposing network node")
     proposal: int | None = Field(default=None, description="the proposal's id, if any")
     verdict: Literal["accept", "reject", "refuse", "keep"]
@@ -397,6 +398,39 @@ class Timing(BaseModel):
 
     proposal: int | None
     decision_s: float = Field(ge=0)
+
+
+class ModelEstimate(BaseModel):
+    """The agent's model as identified on the plant (``wncsca/model``; issue 35, item 3): the
+    estimated parameters with their standard deviations (the fit's Gauss-Newton covariance), the
+    values believed before, how well the fit explains each loop's delivered samples, and what
+    the experiment cost in set-point error."""
+
+    model_config = _FROZEN
+
+    t_start: int = Field(ge=0, strict=True, description="the experiment's start, ticks")
+    t_end: int = Field(ge=0, strict=True, description="its end (the estimate's time), ticks")
+    params: dict[str, dict[str, Finite]] = Field(
+        description="plant -> parameter -> estimated value"
+    )
+    std: dict[str, dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]] = Field(
+        description="plant -> parameter -> the estimate's standard deviation"
+    )
+    was: dict[str, dict[str, Finite]] = Field(
+        description="plant -> parameter -> the value the agent believed before"
+    )
+    fit_pct: dict[str, Finite] = Field(
+        description="loop -> 100 (1 - |residuals| / |y - mean(y)|) over its delivered samples"
+    )
+    sigma: dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]] = Field(
+        description="loop -> the residuals' RMS, in the signal's unit"
+    )
+    cost: dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]] = Field(
+        description="loop -> RMS deviation of its delivered samples from its set point before "
+        "the experiment (what the excitation cost), in the signal's unit"
+    )
+    samples: int = Field(ge=0, strict=True, description="delivered samples fitted, all loops")
+    trials: int = Field(ge=0, strict=True, description="simulations the fit took")
 
 
 class SamplingPeriod(BaseModel):

@@ -50,6 +50,7 @@ __all__ = [
     "wncsca_decision",
     "wncsca_rates",
     "wncsca_timing",
+    "wncsca_model",
     "monitor_assessment",
     "DATA_ROOTS",
     "data_all",
@@ -282,6 +283,11 @@ def wncsca_rates() -> str:
 def wncsca_timing() -> str:
     """Wall-clock decision times of the agent: measurements, excluded from the history digest."""
     return "wncsca/timing"
+
+
+def wncsca_model() -> str:
+    """The coordination agent's identified model: the estimate, its uncertainty and its fit."""
+    return "wncsca/model"
 
 
 def monitor_assessment(loop: str) -> str:

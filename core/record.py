@@ -264,7 +264,8 @@ def wncsca_summary(raw: dict[str, list[Any]]) -> dict[str, Any]:
     """The coordination agent's part of ``summary.json``: ``decisions`` (time, subject, proposal,
     verdict, reasons, delays, bounds), ``assignments`` (time, mode, period and closed state per
     loop, predicted overshoot, method, search trace when negotiated) and ``energy`` (projected
-    network lifetime under the assigned periods against the benchmark periods, per negotiation).
+    network lifetime under the assigned periods against the benchmark periods, per negotiation)
+    and, after an identification experiment, ``models`` (the estimates of ``wncsca/model``).
     Times in time units; periods in time units; ``order`` is the message's place in the history
     (several happen at one instant, in microsteps)."""
     timing: dict[Any, float] = {}
@@ -298,9 +299,19 @@ def wncsca_summary(raw: dict[str, list[Any]]) -> dict[str, Any]:
             energy.append(
                 {"t": t, "order": r.get("order"), "proposal": r["proposal"], **r["energy"]}
             )
+    models = [
+        {
+            **m,
+            "t": to_units(m["t"]),
+            "t_start": to_units(m["t_start"]),
+            "t_end": to_units(m["t_end"]),
+        }
+        for m in raw.get("models", [])
+    ]
     return {
         "proposals": [_proposal(p) for p in raw.get("proposals", [])],
         "decisions": decisions,
+        **({"models": models} if models else {}),
         "assignments": assignments,
         "energy": energy,
         "applied": [

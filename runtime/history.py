@@ -28,6 +28,7 @@ from bus_schemas import (
     Decision,
     Estimate,
     Loss,
+    ModelEstimate,
     ModeRequest,
     MonitorAssessment,
     Move,
@@ -124,6 +125,7 @@ BODIES: tuple[tuple[str, type[BaseModel]], ...] = (
     ("wncsca/decision", Decision),
     ("wncsca/rates", Rates),
     ("wncsca/timing", Timing),
+    ("wncsca/model", ModelEstimate),
     ("monitor/assessment/*", MonitorAssessment),
 )
 """The body schema of every data key (run-relative key expression -> body)."""

@@ -31,6 +31,7 @@ _WNCSCA = {
     keys.wncsca_decision(): "decisions",
     keys.wncsca_rates(): "rates",
     keys.wncsca_timing(): "timing",
+    keys.wncsca_model(): "models",
 }
 
 

@@ -309,6 +309,59 @@ def check_agent_model(s: ScenarioSchema) -> None:
                     )
 
 
+def check_agent_identify(s: ScenarioSchema) -> None:
+    """The agent's identification experiment (``identify:``) perturbs loops it judges, fits
+    numeric non-zero parameters of their plants as the agent believes them, samples every
+    judged loop at an identification period, ends within the run, and has the set points and
+    the mode to itself while it runs (no scheduled set-point change or mode request before its
+    end)."""
+    for name, cfg in s.nodes_of(WncscaConfig).items():
+        exp = cfg.identify
+        if exp is None:
+            continue
+        at = f"nodes.{name}.identify"
+        judged = s.simulated_loops()
+        for loop in sorted(exp.amplitude):
+            if loop not in judged:
+                raise ValueError(
+                    f"{at}.amplitude.{loop}: not a loop the agent judges (loops: {list(judged)})"
+                )
+        plants = sorted({s.loops[n].plant for n in judged})
+        believed = s.believed(cfg)
+        for plant, params in sorted(exp.params.items()):
+            if plant not in plants:
+                raise ValueError(
+                    f"{at}.params.{plant}: not a plant of a loop the agent judges ({plants})"
+                )
+            for param in params:
+                value = believed.plant(plant).params.get(param)
+                if isinstance(value, bool) or not isinstance(value, int | float) or value == 0:
+                    raise ValueError(
+                        f"{at}.params.{plant}: {param!r} is not a non-zero numeric parameter "
+                        f"of the plant (believed: {value!r}; parameters: "
+                        f"{sorted(believed.plant(plant).params)})"
+                    )
+        missing = [n for n in judged if n not in cfg.modes.identification]
+        if missing:
+            raise ValueError(
+                f"nodes.{name}.modes.identification: no period for loop(s) {missing}; the "
+                "experiment samples every loop the agent judges at its identification period"
+            )
+        if exp.duration >= s.end_time:
+            raise ValueError(
+                f"{at}.duration: {exp.duration} does not end before end_time {s.end_time}"
+            )
+        asked = [  # when the agent hears each request
+            (f"setpoints[{i}].t", c.t, c.t - c.announce) for i, c in enumerate(s.setpoints)
+        ] + [(f"modes[{i}].t", c.t, c.t) for i, c in enumerate(s.modes)]
+        for where, t, heard in asked:
+            if heard <= exp.duration:
+                raise ValueError(
+                    f"{where}: {t} is requested at t = {heard}, within the identification "
+                    f"experiment (t = 0 to {exp.duration}, {at}); schedule it after"
+                )
+
+
 def check_monitors(s: ScenarioSchema) -> None:
     """A monitor's loop and columns exist, and its loop has samples."""
     monitors = s.nodes_of(MonitorNodeConfig)
@@ -518,6 +571,7 @@ GRAPH_CHECKS: tuple[Callable[[ScenarioSchema], None], ...] = (
     check_agent,
     check_agent_method,
     check_agent_model,
+    check_agent_identify,
     check_monitors,
     check_disturbances,
     check_drifts,

@@ -800,8 +800,12 @@ class ScenarioSchema(BaseModel):
         for plant, params in sorted((trial.params or {}).items()):  # a draw of the model
             cfg = self.plant(plant)
             nodes[plant] = cfg.model_copy(update={"params": {**cfg.params, **params}})
-        if trial.traces is not None or trial.params:
+        for plant, noise in sorted((trial.noise or {}).items()):  # identification's noise
+            nodes[plant] = nodes[plant].model_copy(update={"noise": dict(noise)})
+        if trial.traces is not None or trial.params or trial.noise:
             update["nodes"] = nodes
+        if trial.seed is not None:
+            update["seed"] = trial.seed
         return self.model_copy(update=update)
 
     def with_loops(

@@ -20,6 +20,8 @@ import time
 from typing import Any
 
 from agents.wncsca.coordinator import Coordinator, Negotiation
+from agents.wncsca.decision import Decision as AgentDecision
+from agents.wncsca.experiment import Experiment
 from bus_schemas import Decision, ModeRequest, Proposal, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
 from bus_schemas.envelope import RawEnvelope
@@ -56,7 +58,7 @@ class WncscaBehaviour(Behaviour):
                 self._on_setpoint(loop),
                 on_invalid=self._on_bad_setpoint(loop),
             )
-            if loop in self.core.config.alarm:
+            if loop in self.core.config.alarm or self.core.config.identify is not None:
                 self.subscribe(keys.meas(loop), Sample, self._on_meas(loop))
         self._initial_links = self.core.govern_links()  # wired links: judged before the run
         for v in self._initial_links:
@@ -76,7 +78,52 @@ class WncscaBehaviour(Behaviour):
                     links=(v.as_dict(),),
                 ),
             )
+        started = self.core.start_identification()
+        if started is not None:
+            self._publish_mode(started)
+            self._run_experiment()
         self._publish_rates()
+
+    def _publish_mode(self, d: AgentDecision) -> None:
+        self.publish(
+            keys.wncsca_decision(), Decision(subject="mode", verdict=d.verdict, reasons=d.reasons)
+        )
+
+    def _run_experiment(self) -> None:
+        """Pass the experiment's set-point moves on at their times (unless it was aborted by
+        then), and fit its data at its end."""
+        exp = self.core.experiment
+        assert exp is not None
+        for t, loop, value in exp.changes:
+
+            def move(loop: str = loop, value: float = value) -> None:
+                if self.core.experiment is exp:
+                    self._pass_on(loop, value)
+
+            self.at(to_ticks(t), move)
+        self.at(to_ticks(exp.end), lambda: self._identified(exp))
+
+    def _identified(self, exp: Experiment) -> None:
+        if self.core.experiment is not exp:
+            return  # aborted
+        t0 = time.perf_counter()
+        result = self.core.identified(self.now)
+        if result.estimate is not None:
+            self.publish(keys.wncsca_model(), result.estimate)
+        log = self.log.info if result.decision.verdict == "accept" else self.log.warning
+        for reason in result.decision.reasons:
+            log("%s", reason)
+        self.publish(
+            keys.wncsca_decision(),
+            Decision(
+                subject="model", verdict=result.decision.verdict, reasons=result.decision.reasons
+            ),
+        )
+        for neg in result.negotiations:
+            self._publish_decision(neg, [])
+            self._publish_timing(neg, t0)
+        accepted = [n for n in result.negotiations if n.decision.verdict == "accept"]
+        self._publish_rates(accepted[-1] if accepted else None)
 
     def _on_proposal(self, env: RawEnvelope, proposal: Proposal) -> None:
         t0 = time.perf_counter()
@@ -121,10 +168,12 @@ class WncscaBehaviour(Behaviour):
             )
 
     def _on_mode(self, env: RawEnvelope, request: ModeRequest) -> None:
+        exp = self.core.experiment
         d = self.core.on_mode(request)
-        self.publish(
-            keys.wncsca_decision(), Decision(subject="mode", verdict=d.verdict, reasons=d.reasons)
-        )
+        self._publish_mode(d)
+        if exp is not None and self.core.experiment is None:  # aborted: set points back
+            for loop, value in sorted(exp.base.items()):
+                self._pass_on(loop, value)
         if d.verdict == "accept":
             self._publish_rates()
 
@@ -181,6 +230,7 @@ class WncscaBehaviour(Behaviour):
 
     def _on_meas(self, loop: str) -> Handler:
         def handle(env: RawEnvelope, sample: Sample) -> None:
+            self.core.observe(loop, sample.value, sample.t_sampled, self.now)
             d = self.core.on_sample(loop, sample.value, self.now)
             if d is None:
                 return

@@ -24,6 +24,7 @@ __all__ = [
     "LinksConfig",
     "ParameterUncertainty",
     "PlantBelief",
+    "IdentifyConfig",
     "WncscaConfig",
 ]
 
@@ -163,6 +164,53 @@ class PlantBelief(BaseModel):
     )
 
 
+class IdentifyConfig(BaseModel):
+    """The identification experiment the agent runs first (seed 000, section II: the LMId
+    "perturbs the plant with pseudo-random signals ... gathers data and applies its model
+    identification algorithm"; issue 35, item 3): from ``t = 0`` for ``duration``, in mode
+    ``identification`` (its periods: ``modes.identification``), every loop named in
+    ``amplitude`` has its set point switched between ``r0 - amplitude`` and ``r0 + amplitude``
+    by generalized binary noise (:func:`agents.identify.excitation.gbn`); the agent then fits
+    its model's ``params`` to the delivered samples (:func:`agents.wncsca.identification.identify`),
+    takes the estimate and its covariance as its model and re-judges the configuration that
+    runs."""
+
+    model_config = _STRICT
+
+    params: dict[str, list[str]] = Field(
+        min_length=1,
+        description="plant -> the parameters of the agent's model the experiment fits",
+    )
+    duration: float = Field(gt=0, description="the experiment's length from t = 0, time units")
+    clock: float = Field(
+        gt=0, description="the noise's clock: the set points may switch every clock, time units"
+    )
+    switch: float = Field(
+        default=0.5,
+        gt=0,
+        le=1,
+        description="probability of a switch per clock (0.5: a PRBS-like spectrum; lower puts "
+        "more power at low frequencies)",
+    )
+    amplitude: dict[str, float] = Field(
+        min_length=1,
+        description="loop -> the set point's excursion either side of its initial value, in the "
+        "signal's unit (the experiment never moves a set point farther)",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> IdentifyConfig:
+        for loop, a in self.amplitude.items():
+            if not (a > 0 and math.isfinite(a)):
+                raise ValueError(f"amplitude.{loop}: must be > 0 and finite, got {a}")
+        for plant, names in self.params.items():
+            if not names or len(set(names)) != len(names):
+                raise ValueError(f"params.{plant}: name each parameter once, got {names}")
+        if self.clock > self.duration:
+            raise ValueError(f"clock: {self.clock} is longer than duration {self.duration}")
+        return self
+
+
 class WncscaConfig(BaseModel):
     """The coordination agent (a scenario node of ``kind: agent``)."""
 
@@ -272,6 +320,11 @@ class WncscaConfig(BaseModel):
         "so P(overshoot <= limit) covers model error; robust: the guarantee holds at every "
         "corner of the parameters' intervals (rel_sd: +-1.96 sd), a bound rather than a "
         "probability over the parameters",
+    )
+    identify: IdentifyConfig | None = Field(
+        default=None,
+        description="an identification experiment first (from t = 0), then the agent's model "
+        "is the estimate, with its covariance as the model's uncertainty",
     )
     model_draws: int = Field(
         default=40,

@@ -43,7 +43,7 @@ from agents.wncsca.assignment import Assignment
 from agents.wncsca.bounds import DelayBound, delay_bounds
 from agents.wncsca.capacity import Manager, describe, path_ticks
 from agents.wncsca.chance import LoopLaw
-from agents.wncsca.config import MODES, LinksConfig
+from agents.wncsca.config import MODES, LinksConfig, ParameterUncertainty
 from agents.wncsca.decision import (
     Decision,
     ProposalError,
@@ -51,14 +51,16 @@ from agents.wncsca.decision import (
     decide,
     path_delay,
 )
+from agents.wncsca.experiment import Experiment
 from agents.wncsca.fast import fast_periods
 from agents.wncsca.guarantee import judge_by_risk, path_laws
+from agents.wncsca.identification import Identified, identify
 from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
-from agents.wncsca.spec import AgentSpec
+from agents.wncsca.spec import AgentSpec, ClosedLoopSpec
 from agents.wncsca.steps import judge_step, safe_alternative, test_length
-from bus_schemas import ModeRequest, Proposal, Setpoint, TschCapacity
+from bus_schemas import ModelEstimate, ModeRequest, Proposal, Setpoint, TschCapacity
 from bus_schemas.bodies import PathConfig
 from core.time import to_ticks, to_units
 from gateway.carrier import TschCarrier
@@ -66,7 +68,7 @@ from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
 
-__all__ = ["Coordinator", "Negotiation", "assign"]
+__all__ = ["Coordinator", "Negotiation", "Identification", "assign"]
 
 _OPEN_MODES = ("steady_state", "fault_detection")
 
@@ -115,6 +117,17 @@ class _Read:
     """The TSCH manager's capacity (``None``: not a TSCH gateway)."""
     others: dict[str, float]
     """The delays of the loops other networks carry (0 where none is accepted yet)."""
+
+
+@dataclass
+class Identification:
+    """What an identification experiment ended in (:meth:`Coordinator.identified`): the
+    estimate as published, the decision on the agent's model, and the re-judgement of every
+    configuration the networks run, on the identified model."""
+
+    estimate: ModelEstimate | None
+    decision: Decision
+    negotiations: list[Negotiation]
 
 
 class _Ended(Exception):
@@ -179,6 +192,9 @@ class Coordinator:
         self._strikes = {n: 0 for n in self.loops}
         # TSCH gateways: their managers, as the last accepted proposal describes them
         self.managers: dict[str, Manager] = {}
+        self._proposals: dict[str, Proposal] = {}  # network -> its last accepted proposal
+        self.experiment: Experiment | None = None
+        """The identification experiment under way (:meth:`start_identification`)."""
 
     @property
     def bounds(self) -> dict[str, DelayBound]:
@@ -231,6 +247,7 @@ class Coordinator:
             self.link_periods.update(v.periods)
         self.delays = delays
         self.accepted[network] = read.pid
+        self._proposals[network] = proposal
         self.proposal = read.pid
         if manager is not None:
             self.managers[network] = manager
@@ -461,7 +478,10 @@ class Coordinator:
         if lacking:
             self.mode = previous
             return Decision(None, "refuse", (f"mode {mode} refused: {lacking}",))
-        return Decision(None, "accept", (f"mode {previous} -> {mode}",))
+        aborted = self.abort_identification()
+        return Decision(
+            None, "accept", (f"mode {previous} -> {mode}", *(aborted.reasons if aborted else ()))
+        )
 
     def uncarried(self) -> str | None:
         """Why a TSCH gateway's manager cannot carry the current mode's rates (``None``: every
@@ -482,6 +502,20 @@ class Coordinator:
         control (mode ``setpoint_change``) before the change applies."""
         value, t_apply = request.value, request.t_apply
         when = now if t_apply is None else max(t_apply, now)
+        if self.experiment is not None and to_ticks(self.experiment.end) > now:
+            return (
+                Decision(
+                    None,
+                    "refuse",
+                    (
+                        f"step {loop} -> {value:g} refused: the identification experiment moves "
+                        f"the set points until t={self.experiment.end:g} (ask again after it, or "
+                        "end it by requesting a mode)",
+                    ),
+                ),
+                None,
+                now,
+            )
         for network, (pid, loops) in sorted(self.at_risk.items()):
             if loop in loops:
                 return (
@@ -582,6 +616,95 @@ class Coordinator:
             closed = {n: False for n in self.loops}
         return {"mode": self.mode, "periods": periods, "closed": closed}
 
+    # -- identification (issue 35, item 3) --------------------------------------------------
+    def start_identification(self) -> Decision | None:
+        """Start the configured identification experiment (``identify:``; ``None`` without
+        one): mode ``identification`` (its periods), the set-point perturbation planned
+        (:attr:`experiment`; the behaviour passes its changes on at their times)."""
+        cfg = self.config.identify
+        if cfg is None:
+            return None
+        previous, self.mode = self.mode, "identification"
+        periods = {n: p for n, p in self.rates()["periods"].items() if n in self.loops}
+        self.experiment = Experiment.plan(
+            cfg, {n: self.setpoints[n] for n in self.loops}, periods, self.spec.seed, previous
+        )
+        moves = sum(1 for c in self.experiment.changes if c[0] < self.experiment.end)
+        swings = ", ".join(f"{n} {r:g} +- {cfg.amplitude[n]:g}" for n, r in self._swung())
+        fitted = ", ".join(f"{p}.{n}" for p, names in sorted(cfg.params.items()) for n in names)
+        return Decision(
+            None,
+            "accept",
+            (
+                f"mode {previous} -> identification: experiment to t={cfg.duration:g} "
+                f"({moves} set-point moves of generalized binary noise: {swings}), then the "
+                f"model's {fitted} fitted to the delivered samples and the configuration "
+                "judged again",
+            ),
+        )
+
+    def _swung(self) -> list[tuple[str, float]]:
+        exp = self.experiment
+        assert exp is not None
+        return [(n, exp.base[n]) for n in sorted(exp.config.amplitude)]
+
+    def observe(self, loop: str, y: float, t_sampled: int, now: int) -> None:
+        """A delivered sample of ``loop`` (taken at ``t_sampled``, delivered at ``now``, ticks):
+        data for the experiment under way."""
+        if self.experiment is not None:
+            self.experiment.record(loop, y, t_sampled, now)
+
+    def identified(self, now: int) -> Identification:
+        """The experiment is over (at ``now``, ticks): fit the model's parameters to what was
+        delivered (:func:`agents.wncsca.identification.identify`), take the estimate as the
+        agent's model, under the chance method with the estimate's standard deviations as its
+        uncertainty, restore the interrupted mode, and judge again each configuration the
+        networks run (a rejection puts its loops at risk: :meth:`on_no_alternative`'s state)."""
+        exp, self.experiment = self.experiment, None
+        assert exp is not None, "identified() without an experiment under way"
+        self.mode = exp.previous_mode
+        cfg = exp.config
+        try:
+            fit = identify(self.model, cfg.params, exp.seen(self.delays))
+        except ValueError as err:
+            reason = f"identification failed ({err}): the model stays as believed"
+            return Identification(None, Decision(None, "reject", (reason,)), [])
+        estimate = _estimate(exp, fit, self.model.trials.spec, now)
+        uncertainty: dict[str, dict[str, ParameterUncertainty]] = {}
+        if self.config.method == "chance":
+            uncertainty = {
+                p: {n: ParameterUncertainty(rel_sd=_rel_sd(fit, p, n)) for n in names}
+                for p, names in fit.params.items()
+            }
+        self.model = LoopModel(self.model.trials.believing(fit.params, uncertainty), self.config)
+        self._bounds = None
+        decision = Decision(None, "accept", tuple(_estimate_reasons(estimate)))
+        negotiations = []
+        for network, proposal in sorted(self._proposals.items()):
+            if self.accepted.get(network) != proposal.id or network in self.at_risk:
+                continue
+            neg = self.on_proposal(network, proposal)
+            if neg.decision.verdict == "reject":
+                self.at_risk[network] = (proposal.id, tuple(neg.decision.offending))
+            negotiations.append(neg)
+        return Identification(estimate, decision, negotiations)
+
+    def abort_identification(self) -> Decision | None:
+        """Operations changed the mode while an experiment ran: it ends unfitted, its set
+        points back at their values before it (``None``: no experiment under way)."""
+        exp, self.experiment = self.experiment, None
+        if exp is None:
+            return None
+        self.setpoints.update(exp.base)
+        return Decision(
+            None,
+            "accept",
+            (
+                f"identification experiment aborted (mode {self.mode} requested): set points "
+                "back at their values before it; the model stays as believed",
+            ),
+        )
+
     # -- energy ----------------------------------------------------------------------------
     def energy(self, network: str, paths: Mapping[str, PathConfig]) -> dict[str, Any] | None:
         """Projected network lifetime (the first battery node to run out) under the control
@@ -657,4 +780,53 @@ def _weights(paths: Mapping[str, PathConfig], loops: tuple[str, ...]) -> dict[st
         loop = path.rpartition(".")[0]
         if loop in out and entry.hops > 0:
             out[loop] = float(entry.hops) if out[loop] == 1.0 else out[loop] + entry.hops
+    return out
+
+
+_REL_SD_MAX = 0.3
+"""The largest relative standard deviation a stated uncertainty takes
+(:class:`~agents.wncsca.config.ParameterUncertainty`): a poorer estimate is stated so."""
+
+
+def _rel_sd(fit: Identified, plant: str, name: str) -> float:
+    """The estimate's relative standard deviation, within what an uncertainty can state (a fit
+    that pins a parameter exactly still leaves it a trace of doubt)."""
+    rel = fit.rel_sd(plant, name)
+    return min(max(rel, 1e-6), _REL_SD_MAX) if math.isfinite(rel) else _REL_SD_MAX
+
+
+def _estimate(exp: Experiment, fit: Identified, spec: ClosedLoopSpec, now: int) -> ModelEstimate:
+    """The estimate as published on ``wncsca/model``."""
+    was = {
+        p: {n: float(spec.plants[p].params[n]) for n in names} for p, names in fit.params.items()
+    }
+    return ModelEstimate(
+        t_start=0,
+        t_end=now,
+        params={p: dict(v) for p, v in fit.params.items()},
+        std={p: {n: fit.std(p, n) for n in names} for p, names in fit.params.items()},
+        was=was,
+        fit_pct=dict(fit.fit_pct),
+        sigma=dict(fit.sigma),
+        cost=exp.cost(),
+        samples=exp.delivered(),
+        trials=fit.trials,
+    )
+
+
+def _estimate_reasons(e: ModelEstimate) -> list[str]:
+    """What the agent says of its identified model, one line per parameter, then the fit."""
+    out = []
+    for plant, params in sorted(e.params.items()):
+        for name, value in sorted(params.items()):
+            sd, was = e.std[plant][name], e.was[plant][name]
+            out.append(
+                f"model identified: {plant}.{name} = {value:.5g} +- {1.96 * sd:.3g} (95 %), "
+                f"believed {was:.5g} ({100 * (value / was - 1):+.1f} %)"
+            )
+    fits = ", ".join(f"{n} {v:.1f} %" for n, v in sorted(e.fit_pct.items()))
+    costs = ", ".join(f"{n} {v:.3g}" for n, v in sorted(e.cost.items()))
+    out.append(
+        f"fit {fits} over {e.samples} delivered samples; excitation cost (RMS |y - r0|) {costs}"
+    )
     return out

@@ -132,6 +132,11 @@ class Trial:
     params: Mapping[str, Mapping[str, float]] | None = None
     """Plant -> parameters that replace the model's for this trial (a draw of the agent's
     model uncertainty, :mod:`agents.wncsca.uncertainty`)."""
+    noise: Mapping[str, Mapping[str, float]] | None = None
+    """Plant -> sensor signal -> measurement noise standard deviation, replacing the plant's
+    (an empty mapping: none; ``None``: the model's own), as identification needs it."""
+    seed: int | None = None
+    """The trial's seed (its noise realization); ``None``: the model's."""
 
 
 class Simulator(Protocol):

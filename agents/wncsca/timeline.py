@@ -138,12 +138,27 @@ def _energy(w: dict[str, Any]) -> list[Event]:
 def _steps(summary: dict[str, Any]) -> list[Event]:
     """Each set-point step with its measured overshoot, last among events at its time; beside
     it the overshoot the agent predicted when it judged the step (the chance method), and a
-    warning when the measured one passed the agent's limit."""
+    warning when the measured one passed the agent's limit. The moves of an identification
+    experiment are its excitation, not steps: one line per loop counts them."""
     w = summary.get("wncsca") or {}
     predicted, limit = _predictions(w.get("decisions", []))
+    windows = [(m["t_start"], m["t_end"]) for m in w.get("models", [])]
     events = []
     for name, lp in summary.get("loops", {}).items():
+        for a, b in windows:
+            moves = [s for s in lp.get("steps", []) if a <= s["t"] <= b]
+            if moves:
+                events.append(
+                    (
+                        a,
+                        math.inf,
+                        f"{name}: {len(moves)} set-point moves of the identification "
+                        f"experiment to t={b:g} (excitation, not judged steps)",
+                    )
+                )
         for s in lp.get("steps", []):
+            if any(a <= s["t"] <= b for a, b in windows):
+                continue
             measured = s["overshoot_pct"]
             text = f"{name} set point {s['from']:g} -> {s['to']:g}: measured overshoot "
             text += "n/a" if measured is None else f"{measured:.1f} %"

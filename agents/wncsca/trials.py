@@ -13,7 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from agents.wncsca.config import ParameterUncertainty
 from agents.wncsca.spec import ClosedLoopSpec, Simulator, Step, Trial
+from agents.wncsca.uncertainty import believing
 from core.record import RunRecord
 from core.time import to_ticks, to_units
 
@@ -29,6 +31,22 @@ class Trials:
         self.loops: tuple[str, ...] = spec.names
         self.benchmark: dict[str, float] = spec.benchmark
         self.fingerprint = spec.fingerprint
+        self._belief: dict[str, dict[str, float]] = {}
+        """Plant -> parameters believed since the simulator was built (:meth:`believing`):
+        every trial carries them, under its own draw."""
+
+    def believing(
+        self,
+        params: Mapping[str, Mapping[str, float]],
+        uncertainty: Mapping[str, Mapping[str, ParameterUncertainty]],
+    ) -> Trials:
+        """These trials on the model believed anew (:func:`agents.wncsca.uncertainty.believing`:
+        an identification's estimate and its uncertainty), by the same simulator."""
+        out = Trials(believing(self.spec, params, uncertainty), self._simulate)
+        out._belief = {p: dict(v) for p, v in self._belief.items()}
+        for plant, values in params.items():
+            out._belief.setdefault(plant, {}).update(values)
+        return out
 
     def _trial(
         self,
@@ -38,6 +56,8 @@ class Trials:
         end_time: float,
         traces: Mapping[str, list[float | None]] | None = None,
         params: Mapping[str, Mapping[str, float]] | None = None,
+        noise: Mapping[str, Mapping[str, float]] | None = None,
+        seed: int | None = None,
     ) -> Trial:
         return Trial(
             periods={n: float(periods.get(n, self.benchmark[n])) for n in self.loops},
@@ -45,8 +65,21 @@ class Trials:
             steps=steps,
             end_time=float(end_time),
             traces=traces,
-            params=params,
+            params=self._believed(params),
+            noise=noise,
+            seed=seed,
         )
+
+    def _believed(
+        self, params: Mapping[str, Mapping[str, float]] | None
+    ) -> Mapping[str, Mapping[str, float]] | None:
+        """A trial's parameters over the belief (a draw's values win)."""
+        if not self._belief:
+            return params
+        out = {p: dict(v) for p, v in self._belief.items()}
+        for plant, values in (params or {}).items():
+            out.setdefault(plant, {}).update(values)
+        return out
 
     def _moved(self, step: Step, periods: Mapping[str, float], k: int, n: int) -> Step:
         """``step`` moved to ``k/n`` of its loop's period after a sampling instant (samples at
@@ -77,15 +110,19 @@ class Trials:
         end_time: float,
         traces: Mapping[str, list[float | None]] | None = None,
         params: Mapping[str, Mapping[str, float]] | None = None,
+        noise: Mapping[str, Mapping[str, float]] | None = None,
+        seed: int | None = None,
     ) -> RunRecord:
         """One trial with these set-point ``steps`` (``(t, loop, value)``, time units) instead
         of the test's, run to ``end_time``, with each loop's sensor-path delays replayed from
-        ``traces`` (default: the constant ``delays``) and the plants' parameters replaced by
-        ``params`` (default: the model's). The steps keep the test's first step's lead
+        ``traces`` (default: the constant ``delays``), the plants' parameters replaced by
+        ``params`` (default: the model's) and their measurement noise by ``noise`` under
+        ``seed`` (default: the model's own). The steps keep the test's first step's lead
         (``announce``)."""
         lead = self.spec.steps[0].announce
         judged = tuple(Step(float(t), loop, float(v), lead) for t, loop, v in steps)
-        return self._simulate(self._trial(periods, delays, judged, end_time, traces, params))
+        trial = self._trial(periods, delays, judged, end_time, traces, params, noise, seed)
+        return self._simulate(trial)
 
     def run_replay(
         self,

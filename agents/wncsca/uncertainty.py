@@ -25,9 +25,11 @@ today's, bit for bit.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import json
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -36,7 +38,15 @@ from agents.wncsca.config import ParameterUncertainty, WncscaConfig
 from agents.wncsca.spec import ClosedLoopSpec, JudgedPlant
 from plants import registry
 
-__all__ = ["ModelDraws", "model_draws", "plant_model", "interval_of", "TRUNCATE_SD", "CORNER_SD"]
+__all__ = [
+    "ModelDraws",
+    "model_draws",
+    "plant_model",
+    "believing",
+    "interval_of",
+    "TRUNCATE_SD",
+    "CORNER_SD",
+]
 
 TRUNCATE_SD = 2.5
 """A ``rel_sd`` belief is drawn within this many standard deviations of the believed value."""
@@ -158,3 +168,34 @@ def plant_model(plant: JudgedPlant, params: Mapping[str, float]) -> Any:
     if not params:
         return plant.model
     return registry.build(plant.kind, {**plant.params, **params})
+
+
+def believing(
+    spec: ClosedLoopSpec,
+    params: ParamSet,
+    uncertainty: Mapping[str, Mapping[str, ParameterUncertainty]],
+) -> ClosedLoopSpec:
+    """``spec`` with its plants believed anew (an identification's estimate): ``params``
+    (plant -> parameter -> value) replace the believed values, and ``uncertainty`` (plant ->
+    parameter -> spread) the stated spread of those parameters (others keep theirs); the
+    fingerprint follows."""
+    plants = dict(spec.plants)
+    for name in sorted(set(params) | set(uncertainty)):
+        plant = plants[name]
+        values = {**plant.params, **params.get(name, {})}
+        plants[name] = replace(
+            plant,
+            model=plant_model(plant, params.get(name, {})),
+            params=values,
+            uncertainty={**plant.uncertainty, **uncertainty.get(name, {})},
+        )
+    what = {
+        "was": spec.fingerprint,
+        "params": {p: dict(v) for p, v in sorted(params.items())},
+        "uncertainty": {
+            p: {n: u.model_dump(exclude_none=True) for n, u in sorted(v.items())}
+            for p, v in sorted(uncertainty.items())
+        },
+    }
+    digest = hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:16]
+    return replace(spec, plants=plants, fingerprint=digest)
