@@ -12,6 +12,12 @@ every field that is wrong, and nothing changes; what the schema cannot know (an 
 mode, a network that is no gateway) the core refuses
 (:class:`~agents.wncsca.coordinator.Coordinator`). The wall-clock time of each decision goes on
 ``wncsca/timing`` (a measurement: left out of the history digest).
+
+With ``identify:`` the agent first runs its identification experiment
+(:mod:`agents.wncsca.experiment`): it passes the experiment's set-point moves on, keeps every
+delivered ``loop/<l>/meas`` sample, and at the experiment's end publishes its identified model on
+``wncsca/model`` (:class:`~bus_schemas.ModelEstimate`), a ``model`` decision, and its judgement
+again of each running configuration on that model.
 """
 
 from __future__ import annotations
