@@ -268,14 +268,17 @@ def wncsca_summary(raw: dict[str, list[Any]]) -> dict[str, Any]:
     and, after an identification experiment, ``models`` (the estimates of ``wncsca/model``).
     Times in time units; periods in time units; ``order`` is the message's place in the history
     (several happen at one instant, in microsteps)."""
-    timing: dict[Any, float] = {}
+    timing: dict[Any, list[float]] = {}  # proposal -> the wall times of its judgements, in order
     for entry in raw.get("timing", []):
-        timing.setdefault(entry["proposal"], entry["decision_s"])
+        timing.setdefault(entry["proposal"], []).append(entry["decision_s"])
     decisions = []
     for d in raw.get("decisions", []):
         entry = {**d, "t": to_units(d["t"])}
-        if d.get("subject") == "proposal" and d.get("proposal") in timing:
-            entry["decision_time_s"] = timing[d["proposal"]]
+        # each judgement of a proposal (a later one: judged again on an identified model) has
+        # its own timing; a "keep" is no judgement and has none
+        took = timing.get(d.get("proposal")) if d.get("subject") == "proposal" else None
+        if took and d.get("verdict") != "keep":
+            entry["decision_time_s"] = took.pop(0)
         decisions.append(entry)
     assignments, energy = [], []
     for r in raw.get("rates", []):

@@ -5,6 +5,7 @@ warns when the limit was broken (issue 35, item 6): a user's step predicted 24.9
 from __future__ import annotations
 
 from agents.wncsca.timeline import format_timeline
+from core.record import wncsca_summary
 
 
 def _summary(measured: float) -> dict:
@@ -40,3 +41,17 @@ def test_a_step_past_the_limit_is_flagged_beside_its_prediction():
 def test_a_step_within_the_limit_is_not_flagged():
     line = format_timeline(_summary(21.0)).splitlines()[-1]
     assert "measured overshoot 21.0 % (predicted 24.9 %)" in line and "WARNING" not in line
+
+
+def test_each_judgement_of_a_proposal_has_its_own_wall_time_and_a_keep_none():
+    raw = {
+        "decisions": [
+            {"t": 0, "subject": "proposal", "proposal": 0, "verdict": "reject", "reasons": []},
+            {"t": 0, "subject": "proposal", "proposal": 0, "verdict": "keep", "reasons": []},
+            {"t": 5, "subject": "proposal", "proposal": 0, "verdict": "accept", "reasons": []},
+            {"t": 5, "subject": "mode", "proposal": None, "verdict": "accept", "reasons": []},
+        ],
+        "timing": [{"proposal": 0, "decision_s": 4.0}, {"proposal": 0, "decision_s": 2.5}],
+    }
+    got = [d.get("decision_time_s") for d in wncsca_summary(raw)["decisions"]]
+    assert got == [4.0, None, 2.5, None]
