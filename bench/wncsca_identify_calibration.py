@@ -90,7 +90,6 @@ def main() -> None:
         fit = fit_of(seed, args.period)
         u = fit.params["reactor"]["U"]
         boot = 1.96 * fit.std("reactor", "U")
-        assert fit.gauss_newton is not None
         plain = 1.96 * math.sqrt(float(fit.gauss_newton[0, 0]))
         ok = (abs(u - TRUE_U) <= boot, abs(u - TRUE_U) <= plain)
         inside["bootstrap"] += ok[0]

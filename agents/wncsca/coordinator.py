@@ -630,7 +630,8 @@ class Coordinator:
             cfg, {n: self.setpoints[n] for n in self.loops}, periods, self.spec.seed, previous
         )
         moves = sum(1 for c in self.experiment.changes if c[0] < self.experiment.end)
-        swings = ", ".join(f"{n} {r:g} +- {cfg.amplitude[n]:g}" for n, r in self._swung())
+        base = self.experiment.base
+        swings = ", ".join(f"{n} {base[n]:g} +- {a:g}" for n, a in sorted(cfg.amplitude.items()))
         fitted = ", ".join(f"{p}.{n}" for p, names in sorted(cfg.params.items()) for n in names)
         return Decision(
             None,
@@ -642,11 +643,6 @@ class Coordinator:
                 "judged again",
             ),
         )
-
-    def _swung(self) -> list[tuple[str, float]]:
-        exp = self.experiment
-        assert exp is not None
-        return [(n, exp.base[n]) for n in sorted(exp.config.amplitude)]
 
     def observe(self, loop: str, y: float, t_sampled: int, now: int) -> None:
         """A delivered sample of ``loop`` (taken at ``t_sampled``, delivered at ``now``, ticks):

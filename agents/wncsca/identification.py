@@ -99,7 +99,7 @@ class Identified:
     sigma: Mapping[str, float]
     fit_pct: Mapping[str, float]
     trials: int
-    gauss_newton: NDArray[np.float64] | None = None
+    gauss_newton: NDArray[np.float64]
     """The plain Gauss-Newton covariance ``s^2 (J'J)^-1`` (white residuals assumed), beside the
     bootstrap's :attr:`covariance`, which the agent states."""
 
@@ -140,7 +140,7 @@ def identify(
     if bootstrap < 2:
         raise ValueError(f"identify: bootstrap must be >= 2, got {bootstrap}")
     fit = _Fit(model, experiment, names, np.asarray(p0))
-    y = fit.measured(experiment.samples)
+    y = fit.measured()
     if len(y) <= len(names):
         raise ValueError(f"identify: {len(y)} samples for {len(names)} parameters")
     result = fit.solve(y, np.ones(len(names)))
@@ -156,8 +156,9 @@ def identify(
         sigma[n] = float(np.sqrt(np.mean(rr**2)))
         spread = float(np.linalg.norm(values - values.mean()))
         fits[n] = 100.0 * (1.0 - float(np.linalg.norm(rr)) / spread) if spread > 0 else 0.0
+    fitted = fit.outputs(result.x)
     replicates = np.asarray(
-        [fit.solve(fit.replicate(result.x, sigma, b), result.x).x for b in range(bootstrap)]
+        [fit.solve(fit.replicate(result.x, sigma, fitted, b), result.x).x for b in range(bootstrap)]
     )
     covariance = np.atleast_2d(np.cov(replicates, rowvar=False)) * scale
     return Identified(fit.params_of(result.x), names, covariance, sigma, fits, fit.trials, plain)
@@ -186,32 +187,37 @@ class _Fit:
             out.setdefault(plant, {})[name] = v
         return out
 
-    def measured(
-        self, samples: Mapping[str, tuple[Sequence[float], Sequence[float]]]
-    ) -> NDArray[np.float64]:
-        """The fitted values in the order of the residuals."""
+    def measured(self) -> NDArray[np.float64]:
+        """The experiment's delivered values in the order of the residuals."""
+        samples = self.experiment.samples
         return np.concatenate([np.asarray(samples[n][1], dtype=float) for n in self.loops])
+
+    def outputs(self, theta: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+        """The quiet trial's outputs with parameters ``theta`` at the delivered instants."""
+        self.trials += 1
+        return _trial_outputs(self.model, self.experiment, self.params_of(theta), noise=self.quiet)
 
     def solve(self, y: NDArray[np.float64], theta0: NDArray[np.float64]) -> Any:
         """``least_squares`` of ``y`` against the quiet trials' outputs from ``theta0``."""
 
         def residuals(theta: NDArray[np.float64]) -> NDArray[np.float64]:
-            self.trials += 1
-            outputs = _trial_outputs(
-                self.model, self.experiment, self.params_of(theta), noise=self.quiet
-            )
+            outputs = self.outputs(theta)
             r = y - np.concatenate([outputs[n] for n in self.loops])
             return np.where(np.isfinite(r), r, DIVERGED)
 
         return scipy.optimize.least_squares(residuals, theta0, x_scale="jac")
 
     def replicate(
-        self, theta: NDArray[np.float64], sigma: Mapping[str, float], b: int
+        self,
+        theta: NDArray[np.float64],
+        sigma: Mapping[str, float],
+        fitted: Mapping[str, NDArray[np.float64]],
+        b: int,
     ) -> NDArray[np.float64]:
         """Replicate ``b`` of the experiment on the fitted model: the same set points, periods
         and delays, each loop's sensor with white noise of its residuals' RMS (its own seed),
         the controllers acting on the noisy samples; its delivered samples at the experiment's
-        instants (a loss the trial did not replay keeps the fitted output there)."""
+        instants (a loss the trial did not replay keeps the ``fitted`` output there)."""
         spec = self.model.trials.spec
         exp = self.experiment
         noise: dict[str, dict[str, float]] = {p: {} for p in spec.plants}
@@ -229,7 +235,6 @@ class _Fit:
             seed=seed,
         )
         self.trials += 1
-        fitted = _trial_outputs(self.model, exp, self.params_of(theta), noise=self.quiet)
         out = []
         for n in self.loops:
             lp = rec.loops[n]
