@@ -96,6 +96,12 @@ class Setpoint(BaseModel):
         strict=True,
         description="announced change: when it is to be applied, ticks (None: at once)",
     )
+    safe_ramp: bool = Field(
+        default=False,
+        strict=True,
+        description="to a coordination agent: if it refuses the step, apply its safe "
+        "alternative instead (the fastest set-point ramp to the same value that it judges safe)",
+    )
 
 
 class PlantState(BaseModel):

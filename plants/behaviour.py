@@ -74,6 +74,8 @@ class PlantSpec:
         Period of the true-state record and end of the run, ticks.
     sensors : mapping
         Sampled output -> its loop's initial sampling period, ticks (in the loops' name order).
+    offsets : mapping
+        Sampled output -> its first sampling instant, ticks (none named: 0).
     noise : mapping
         Output -> standard deviation of its additive measurement noise.
     rngs : mapping
@@ -97,6 +99,7 @@ class PlantSpec:
     """The model's name in :data:`plants.registry.MODELS` (to rebuild it when it drifts)."""
     params: Mapping[str, Any] = field(default_factory=dict)
     """The model's parameters at the start."""
+    offsets: Mapping[str, int] = field(default_factory=dict)
 
 
 class PlantBehaviour(Behaviour):
@@ -120,7 +123,10 @@ class PlantBehaviour(Behaviour):
         self.noise = dict(spec.noise)
         self.samplers: dict[str, Timer] = {}
         for sensor, period in spec.sensors.items():
-            self.samplers[sensor] = self.every(period, self._sampler(sensor), end=self.end)
+            start = spec.offsets.get(sensor, 0)
+            self.samplers[sensor] = self.every(
+                period, self._sampler(sensor), start=start, end=self.end
+            )
             key = keys.sampling(self.name, sensor)
             self.subscribe(key, SamplingPeriod, self._on_period(sensor))
         for input_name in self.model.input_names:  # loop actuators and scheduled disturbances

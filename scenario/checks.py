@@ -439,6 +439,11 @@ def check_setpoints(s: ScenarioSchema) -> None:
             )
         if change.announce and s.agent_node() is None:
             raise ValueError(f"setpoints[{i}].announce: announcing needs an agent node")
+        if change.safe_ramp and s.agent_node() is None:
+            raise ValueError(
+                f"setpoints[{i}].safe_ramp: the safe alternative is a coordination agent's; the "
+                "scenario has no agent node"
+            )
 
 
 def check_modes(s: ScenarioSchema) -> None:

@@ -214,6 +214,12 @@ class ControllerNodeConfig(BaseModel):
         default=None, description="the loops of a multi-loop law, in the order of its x and u"
     )
     law: LawConfig
+    feedforward_params: dict[str, float] = Field(
+        default_factory=dict,
+        description="plant parameters its steady-state feedforward is designed on, where they "
+        "differ from the plant node's (a controller designed on another model of its plant; "
+        "the agent's trials pin them when the plant drifts from its design)",
+    )
 
     @model_validator(mode="after")
     def _one_or_several(self) -> ControllerNodeConfig:
@@ -396,6 +402,12 @@ class LoopConfig(BaseModel):
     tau_s: float | None = Field(
         default=None, gt=0, description="sampling period of the loop's sensor (none without one)"
     )
+    sample_offset: float = Field(
+        default=0.0,
+        ge=0,
+        description="when the sensor first samples (time units); then every tau_s (a sensor "
+        "whose clock is not the run's: staggered sensors, or the agent's replay of a run)",
+    )
     tau_d: float = Field(default=0.0, ge=0, description="sensor-to-controller path delay")
     tau_a: float = Field(default=0.0, ge=0, description="controller-to-actuator path delay")
     sensor_node: str | None = Field(
@@ -517,6 +529,11 @@ class SetpointChange(BaseModel):
         default=0.0,
         ge=0,
         description="the operator requests the change this long before t (needs an agent)",
+    )
+    safe_ramp: bool = Field(
+        default=False,
+        description="if the agent refuses the step, it applies its safe alternative instead (the "
+        "fastest set-point ramp to the value that it judges safe; needs an agent)",
     )
 
 
@@ -687,7 +704,11 @@ class ScenarioSchema(BaseModel):
         lp = self.loops[loop]
         if lp.actuator is None:
             raise ValueError(f"loops.{loop}: a measurement-only loop moves no input")
-        plant = self.plant(lp.plant).build()
+        cfg = self.plant(lp.plant)
+        design = self.controllers()[lp.controller].feedforward_params
+        if design:  # the controller's own model of its plant
+            cfg = cfg.model_copy(update={"params": {**cfg.params, **design}})
+        plant = cfg.build()
         outputs = {
             n: other.sensor
             for n, other in self.loops_of_plant(lp.plant).items()
@@ -777,8 +798,15 @@ class ScenarioSchema(BaseModel):
         delay traces and plant parameters (only those fields replaced: the trial's values are
         checked by the agent, :meth:`agents.wncsca.model.LoopModel.evaluate`, and its draws of
         parameters by :mod:`agents.wncsca.uncertainty`)."""
+        offsets = trial.offsets or {}
         loops = {
-            name: lp.model_copy(update={"tau_s": trial.periods[name], "tau_d": trial.delays[name]})
+            name: lp.model_copy(
+                update={
+                    "tau_s": trial.periods[name],
+                    "tau_d": trial.delays[name],
+                    "sample_offset": float(offsets.get(name, 0.0)),
+                }
+            )
             for name, lp in self.loops.items()
         }
         template = self.setpoints[0]
@@ -802,7 +830,11 @@ class ScenarioSchema(BaseModel):
             nodes[plant] = cfg.model_copy(update={"params": {**cfg.params, **params}})
         for plant, noise in sorted((trial.noise or {}).items()):  # identification's noise
             nodes[plant] = nodes[plant].model_copy(update={"noise": dict(noise)})
-        if trial.traces is not None or trial.params or trial.noise:
+        for plant, design in sorted((trial.design or {}).items()):  # the controllers' design
+            for lp in self.loops_of_plant(plant).values():
+                ctl = self.controllers()[lp.controller]
+                nodes[lp.controller] = ctl.model_copy(update={"feedforward_params": dict(design)})
+        if trial.traces is not None or trial.params or trial.noise or trial.design:
             update["nodes"] = nodes
         if trial.seed is not None:
             update["seed"] = trial.seed

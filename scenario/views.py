@@ -96,6 +96,11 @@ def plant_spec(scenario: ScenarioSchema, name: str) -> PlantSpec:
         input_range=tuple(cfg.input_range.get(i, (-math.inf, math.inf)) for i in model.input_names),
         kind=cfg.model,
         params=dict(cfg.params),
+        offsets={
+            lp.sensor: to_ticks(lp.sample_offset)
+            for lp in scenario.loops_of_plant(name).values()
+            if lp.sensor is not None and lp.tau_s is not None and lp.sample_offset > 0
+        },
     )
 
 
@@ -199,7 +204,13 @@ def operator_spec(scenario: ScenarioSchema, name: str) -> OperatorSpec:
     """The operator: the scenario's set-point, mode and disturbance schedules, in ticks."""
     return OperatorSpec(
         setpoints=tuple(
-            SetpointAt(to_ticks(c.t), c.loop, c.value, to_ticks(c.announce) if c.announce else 0)
+            SetpointAt(
+                to_ticks(c.t),
+                c.loop,
+                c.value,
+                to_ticks(c.announce) if c.announce else 0,
+                c.safe_ramp,
+            )
             for c in scenario.setpoints
         ),
         modes=tuple(ModeAt(to_ticks(m.t), m.mode) for m in scenario.modes),

@@ -30,6 +30,7 @@ class SetpointAt(NamedTuple):
     loop: str
     value: float
     announce: int  # ticks ahead of t it is announced (0: not announced)
+    safe_ramp: bool = False  # the agent may ramp a step it refuses
 
 
 class ModeAt(NamedTuple):
@@ -66,10 +67,11 @@ class OperatorBehaviour(Behaviour):
         self.spec = spec
         for change in spec.setpoints:
             if change.announce:
-                body = Setpoint(value=change.value, t_apply=change.t)
+                body = Setpoint(value=change.value, t_apply=change.t, safe_ramp=change.safe_ramp)
                 self.at(change.t - change.announce, self._publisher(change.loop, body))
             else:
-                self.at(change.t, self._publisher(change.loop, Setpoint(value=change.value)))
+                body = Setpoint(value=change.value, safe_ramp=change.safe_ramp)
+                self.at(change.t, self._publisher(change.loop, body))
         for mode in spec.modes:
             self.at(mode.t, self._mode(mode.mode))
         for dist in spec.disturbances:

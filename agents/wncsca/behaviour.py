@@ -18,16 +18,24 @@ With ``identify:`` the agent first runs its identification experiment
 delivered ``loop/<l>/meas`` sample, and at the experiment's end publishes its identified model on
 ``wncsca/model`` (:class:`~bus_schemas.ModelEstimate`), a ``model`` decision, and its judgement
 again of each running configuration on that model.
+
+With ``watch:`` the agent keeps what its loops deliver for the test's length after each step it
+judged, and at the end says on ``wncsca/decision`` (subject ``model``) whether its model still
+fits (:mod:`agents.wncsca.watch`); when it does not, it identifies again (``identify:``: the
+experiment from then on) or widens its stated uncertainty and judges the running configurations
+again.
 """
 
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import Any
 
 from agents.wncsca.coordinator import Coordinator, Negotiation
 from agents.wncsca.decision import Decision as AgentDecision
 from agents.wncsca.experiment import Experiment
+from agents.wncsca.window import Window
 from bus_schemas import Decision, ModeRequest, Proposal, Rates, Sample, Setpoint, Timing, keys
 from bus_schemas.bodies import NetApplied
 from bus_schemas.envelope import RawEnvelope
@@ -45,6 +53,7 @@ class WncscaBehaviour(Behaviour):
     def __init__(self, name: str, core: Coordinator) -> None:
         super().__init__(name)
         self.core = core
+        self._requests: dict[str, Setpoint] = {}  # loop -> its last accepted set-point request
         t0 = time.perf_counter()
         bounds = self.core.bounds  # once, before the run: III.E step 2's tau_d-max
         self.log.info(
@@ -64,7 +73,8 @@ class WncscaBehaviour(Behaviour):
                 self._on_setpoint(loop),
                 on_invalid=self._on_bad_setpoint(loop),
             )
-            if loop in self.core.config.alarm or self.core.config.identify is not None:
+            cfg = self.core.config
+            if loop in cfg.alarm or cfg.identify is not None or cfg.watch is not None:
                 self.subscribe(keys.meas(loop), Sample, self._on_meas(loop))
         self._initial_links = self.core.govern_links()  # wired links: judged before the run
         for v in self._initial_links:
@@ -116,20 +126,41 @@ class WncscaBehaviour(Behaviour):
         result = self.core.identified(self.now)
         if result.estimate is not None:
             self.publish(keys.wncsca_model(), result.estimate)
-        log = self.log.info if result.decision.verdict == "accept" else self.log.warning
-        for reason in result.decision.reasons:
+        self._publish_model(result.decision)
+        self._publish_judged_again(result.negotiations, t0)
+
+    def _publish_model(self, d: AgentDecision) -> None:
+        log = self.log.info if d.verdict == "accept" else self.log.warning
+        for reason in d.reasons:
             log("%s", reason)
         self.publish(
-            keys.wncsca_decision(),
-            Decision(
-                subject="model", verdict=result.decision.verdict, reasons=result.decision.reasons
-            ),
+            keys.wncsca_decision(), Decision(subject="model", verdict=d.verdict, reasons=d.reasons)
         )
-        for neg in result.negotiations:
+
+    def _publish_judged_again(self, negotiations: list[Negotiation], t0: float) -> None:
+        """The running configurations judged again on a new model, and the rates after."""
+        for neg in negotiations:
             self._publish_decision(neg, [])
             self._publish_timing(neg, t0)
-        accepted = [n for n in result.negotiations if n.decision.verdict == "accept"]
+        accepted = [n for n in negotiations if n.decision.verdict == "accept"]
         self._publish_rates(accepted[-1] if accepted else None)
+
+    def _watched(self, window: Window) -> None:
+        """The model watch's window after a judged step is over: its verdict on the model, and
+        an identification started or the configurations judged again when it no longer fits."""
+        if self.core.watching is not window or to_ticks(window.end) != self.now:
+            return  # abandoned (the loops' rates or set points changed under it), or extended
+        t0 = time.perf_counter()
+        result = self.core.watched(self.now)
+        if result.decision is None:
+            return
+        self._publish_model(result.decision)
+        if result.identification is not None:
+            self._publish_mode(result.identification)
+            self._run_experiment()
+            self._publish_rates()
+        elif result.negotiations:
+            self._publish_judged_again(result.negotiations, t0)
 
     def _on_proposal(self, env: RawEnvelope, proposal: Proposal) -> None:
         t0 = time.perf_counter()
@@ -213,10 +244,15 @@ class WncscaBehaviour(Behaviour):
                 self._publish_rates()
             if self.core.relax_at is not None:
                 self.at(self.core.relax_at, self._relax)
-            if when == self.now:
-                self._pass_on(loop, value)
-            else:
-                self.at(when, lambda: self._pass_on(loop, value))
+            watching = self.core.watching
+            if watching is not None:  # a new window, or the open one extended to a later end
+                self.at(to_ticks(watching.end), lambda: self._watched(watching))
+            self._requests[loop] = request  # a later request ends this one's pending moves
+            for t, v in ((when, value), *self.core.ramp):
+                if t == self.now:
+                    self._pass_on(loop, v)
+                else:
+                    self.at(t, partial(self._pass_on_for, request, loop, v))
 
         return handle
 
@@ -230,8 +266,13 @@ class WncscaBehaviour(Behaviour):
         )
         self._publish_rates()
 
+    def _pass_on_for(self, request: Setpoint, loop: str, value: float) -> None:
+        """A move of ``request`` at its time, unless a later request for ``loop`` replaced it."""
+        if self._requests.get(loop) is request:
+            self._pass_on(loop, value)
+
     def _pass_on(self, loop: str, value: float) -> None:
-        self.core.setpoints[loop] = value
+        self.core.pass_on(loop, value, self.now)
         self.publish(keys.loop_setpoint(loop), Setpoint(value=value))
 
     def _on_meas(self, loop: str) -> Handler:

@@ -25,6 +25,7 @@ __all__ = [
     "ParameterUncertainty",
     "PlantBelief",
     "IdentifyConfig",
+    "WatchConfig",
     "WncscaConfig",
 ]
 
@@ -211,6 +212,41 @@ class IdentifyConfig(BaseModel):
         return self
 
 
+class WatchConfig(BaseModel):
+    """The model watch (issue 35, item 4; :mod:`agents.wncsca.watch`): after every step the
+    chance method judged, the agent compares what its loops delivered over the test's length
+    with its model's prediction of it, scores the misfit against replays of the same window on
+    its model (noise and stated uncertainty), and runs a one-sided CUSUM on the scores; past
+    ``threshold`` the model no longer fits: the agent identifies it again (with ``identify:``)
+    or widens its stated uncertainty by ``widen``, and judges the running configurations
+    again."""
+
+    model_config = _STRICT
+
+    allowance: float = Field(
+        default=0.5,
+        ge=0,
+        description="CUSUM's k: the score (in standard deviations of what the model expects) a "
+        "window may have without moving the sum up",
+    )
+    threshold: float = Field(
+        default=5.0, gt=0, description="CUSUM's h: past this sum the model no longer fits"
+    )
+    replays: int = Field(
+        default=20,
+        ge=3,
+        le=1000,
+        description="replays of each window on the model (its noise and stated uncertainty) "
+        "that say what a fitting model's score looks like",
+    )
+    widen: float = Field(
+        default=2.0,
+        gt=1,
+        description="without identify: the factor on the stated uncertainty (its standard "
+        "deviations, its intervals' half-widths) when the model no longer fits",
+    )
+
+
 class WncscaConfig(BaseModel):
     """The coordination agent (a scenario node of ``kind: agent``)."""
 
@@ -326,6 +362,12 @@ class WncscaConfig(BaseModel):
         description="an identification experiment first (from t = 0), then the agent's model "
         "is the estimate, with its covariance as the model's uncertainty",
     )
+    watch: WatchConfig | None = Field(
+        default=None,
+        description="chance method: after every judged step, test whether the model still "
+        "fits what the loops delivered (a CUSUM on the innovations' score), and identify again "
+        "or widen the uncertainty when it does not",
+    )
     model_draws: int = Field(
         default=40,
         ge=2,
@@ -344,6 +386,11 @@ class WncscaConfig(BaseModel):
                 raise ValueError(f"alarm.{loop}: must be > 0, got {band}")
         if self.order is not None and len(set(self.order)) != len(self.order):
             raise ValueError(f"order: a loop is named twice in {self.order}")
+        if self.watch is not None and self.method != "chance":
+            raise ValueError(
+                f"watch: the model watch follows the steps the chance method judges; method is "
+                f"{self.method!r} (use method: chance)"
+            )
         if self.method == "chance" and self.estimate == "quantile":
             raise ValueError(
                 "estimate: quantile is a constant delay for the paper and fast methods; the "

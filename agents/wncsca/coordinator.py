@@ -59,7 +59,9 @@ from agents.wncsca.links import LinkGroup, LinkVerdict, judge_links
 from agents.wncsca.model import LoopModel
 from agents.wncsca.paper import successive_approximation
 from agents.wncsca.spec import AgentSpec, ClosedLoopSpec
-from agents.wncsca.steps import judge_step, safe_alternative, test_length
+from agents.wncsca.steps import judge_step, safe_alternative, staircase, test_length
+from agents.wncsca.watch import Score, Watch, score
+from agents.wncsca.window import Window
 from bus_schemas import ModelEstimate, ModeRequest, Proposal, Setpoint, TschCapacity
 from bus_schemas.bodies import PathConfig
 from core.time import to_ticks, to_units
@@ -68,7 +70,7 @@ from gateway.energy import projected_lifetime
 from gateway.paths import Route
 from gateway.topology import Topology
 
-__all__ = ["Coordinator", "Negotiation", "Identification", "assign"]
+__all__ = ["Coordinator", "Negotiation", "Identification", "Watched", "assign"]
 
 _OPEN_MODES = ("steady_state", "fault_detection")
 
@@ -128,6 +130,19 @@ class Identification:
     estimate: ModelEstimate | None
     decision: Decision
     negotiations: list[Negotiation]
+
+
+@dataclass
+class Watched:
+    """What the model watch found at a window's end (:meth:`Coordinator.watched`): its score
+    (``None``: nothing to compare), the decision on the model, and, when it no longer fits, the
+    identification started or the re-judgement of every running configuration on the widened
+    uncertainty."""
+
+    score: Score | None
+    decision: Decision | None
+    identification: Decision | None = None
+    negotiations: list[Negotiation] = field(default_factory=list)
 
 
 class _Ended(Exception):
@@ -193,8 +208,21 @@ class Coordinator:
         # TSCH gateways: their managers, as the last accepted proposal describes them
         self.managers: dict[str, Manager] = {}
         self._proposals: dict[str, Proposal] = {}  # network -> its last accepted proposal
+        self._judged: dict[str, Proposal] = {}  # network -> its last proposal judged
+        self.ramp: tuple[tuple[int, float], ...] = ()
+        """The later moves (ticks, value) of the ramp the last set-point request was applied
+        as (:meth:`on_setpoint`; the behaviour passes them on at their times)."""
         self.experiment: Experiment | None = None
         """The identification experiment under way (:meth:`start_identification`)."""
+        self.experiments = 0
+        """Experiments started so far (each draws its noise from a stream of its own)."""
+        self.sigma: dict[str, float] = {}
+        """Loop -> the last identification's residual RMS (the model watch's noise level)."""
+        self.history: list[tuple[float, str, float]] = []
+        """Every set-point change passed on to the loops (time units, loop, value), in order."""
+        self.watch = Watch(self.config.watch) if self.config.watch is not None else None
+        self.watching: Window | None = None
+        """The window after a judged step that the model watch will judge at its end."""
 
     @property
     def bounds(self) -> dict[str, DelayBound]:
@@ -229,6 +257,7 @@ class Coordinator:
         """Judge ``proposal`` from ``network``: read it, judge the control paths and the links,
         check the periods against a TSCH manager's capacity, and commit what was accepted (each
         step may end the negotiation: a refusal, a rejection)."""
+        self._judged[network] = proposal
         try:
             read = self._read_proposal(network, proposal)
             decision, risk = self._judge_control(network, read)
@@ -254,6 +283,8 @@ class Coordinator:
         if result is None:  # a network carrying links only: no periods to negotiate
             return Negotiation(decision, network, links=links)
         if result.feasible:
+            if dict(result.periods) != self.control_periods:
+                self.watching = None  # the window's loops no longer sample as it assumes
             self.control_periods = dict(result.periods)
             self._relaxed = None  # a new negotiation ends any tightened transient
         self.predicted = dict(result.overshoot_pct)
@@ -479,6 +510,7 @@ class Coordinator:
             self.mode = previous
             return Decision(None, "refuse", (f"mode {mode} refused: {lacking}",))
         aborted = self.abort_identification()
+        self.watching = None  # the loops' rates change: the window is not the step's any more
         return Decision(
             None, "accept", (f"mode {previous} -> {mode}", *(aborted.reasons if aborted else ()))
         )
@@ -499,9 +531,12 @@ class Coordinator:
     ) -> tuple[Decision, float | None, int]:
         """A set-point request for ``loop`` at ``now`` (ticks): returns the verdict, the value to
         pass on (``None`` if refused) and when (ticks). Accepting it puts the loops back under
-        control (mode ``setpoint_change``) before the change applies."""
+        control (mode ``setpoint_change``) before the change applies. A refused step whose
+        request asks for its safe alternative (``safe_ramp``) is ramped instead: the first move
+        is returned, the others are :attr:`ramp`."""
         value, t_apply = request.value, request.t_apply
         when = now if t_apply is None else max(t_apply, now)
+        self.ramp = ()
         if self.experiment is not None and to_ticks(self.experiment.end) > now:
             return (
                 Decision(
@@ -533,7 +568,10 @@ class Coordinator:
                     now,
                 )
         judged: tuple[str, ...] = ()
-        if self.config.method == "chance" and loop in self.loops:
+        unchanged = loop in self.setpoints and float(value) == float(self.setpoints[loop])
+        if unchanged:  # nothing moves: nothing to judge (an overshoot of no change is undefined)
+            judged = (f"{loop} is at {value:g} already: no step to judge",)
+        elif self.config.method == "chance" and loop in self.loops:
             judge = partial(
                 judge_step,
                 self.model,
@@ -554,14 +592,42 @@ class Coordinator:
                     if alternative is not None
                     else "no set-point ramp up to twice the test's length is safe either"
                 )
-                return Decision(None, "refuse", (*judged, offer)), None, now
+                if alternative is None or not request.safe_ramp:
+                    return Decision(None, "refuse", (*judged, offer)), None, now
+                step = alternative.verdict
+                stairs = staircase(
+                    to_units(when),
+                    float(self.setpoints[loop]),
+                    float(value),
+                    step.periods[loop],
+                    alternative.duration,
+                )
+                moves = tuple((to_ticks(t), v) for t, v in stairs)
+                (when, value), self.ramp = moves[0], moves[1:]
+                judged = (
+                    *judged,
+                    offer,
+                    "the alternative applied, as the request asked (safe_ramp)",
+                )
             if step.verdict == "tighten":
                 if self._relaxed is None:
                     self._relaxed = dict(self.control_periods)
                 self.control_periods = dict(step.periods)
-                self.relax_at = when + to_ticks(test_length(self.model))
+                last = self.ramp[-1][0] if self.ramp else when
+                self.relax_at = last + to_ticks(test_length(self.model))
+            if self.watch is not None:  # the model watch judges what the step delivers
+                for t, v in ((when, value), *self.ramp):
+                    self._watch_step(loop, float(v), t)
+        elif loop in self.loops:
+            self.watching = None  # an unjudged change: the window is not the step's any more
         previous, self.mode = self.mode, "setpoint_change"
         note = f"{loop} -> {value:g} at t={to_units(when):g}"
+        if self.ramp:
+            end_t, final = self.ramp[-1]
+            note = (
+                f"{loop} -> {final:g} as a ramp of {len(self.ramp) + 1} moves from "
+                f"t={to_units(when):g} to t={to_units(end_t):g}"
+            )
         if previous != "setpoint_change":
             note += f"; control periods restored and loops closed first (was {previous})"
         return Decision(None, "accept", (note, *judged)), float(value), when
@@ -617,18 +683,27 @@ class Coordinator:
         return {"mode": self.mode, "periods": periods, "closed": closed}
 
     # -- identification (issue 35, item 3) --------------------------------------------------
-    def start_identification(self) -> Decision | None:
+    def start_identification(self, now: int = 0) -> Decision | None:
         """Start the configured identification experiment (``identify:``; ``None`` without
-        one): mode ``identification`` (its periods), the set-point perturbation planned
-        (:attr:`experiment`; the behaviour passes its changes on at their times)."""
+        one) at ``now`` (ticks): mode ``identification`` (its periods), the set-point
+        perturbation planned (:attr:`experiment`; the behaviour passes its changes on at their
+        times)."""
         cfg = self.config.identify
         if cfg is None:
             return None
         previous, self.mode = self.mode, "identification"
+        self.watching = None
         periods = {n: p for n, p in self.rates()["periods"].items() if n in self.loops}
         self.experiment = Experiment.plan(
-            cfg, {n: self.setpoints[n] for n in self.loops}, periods, self.spec.seed, previous
+            cfg,
+            {n: self.setpoints[n] for n in self.loops},
+            periods,
+            self.spec.seed,
+            previous,
+            t0=to_units(now),
+            index=self.experiments,
         )
+        self.experiments += 1
         moves = sum(1 for c in self.experiment.changes if c[0] < self.experiment.end)
         base = self.experiment.base
         swings = ", ".join(f"{n} {base[n]:g} +- {a:g}" for n, a in sorted(cfg.amplitude.items()))
@@ -637,7 +712,7 @@ class Coordinator:
             None,
             "accept",
             (
-                f"mode {previous} -> identification: experiment to t={cfg.duration:g} "
+                f"mode {previous} -> identification: experiment to t={self.experiment.end:g} "
                 f"({moves} set-point moves of generalized binary noise: {swings}), then the "
                 f"model's {fitted} fitted to the delivered samples and the configuration "
                 "judged again",
@@ -649,6 +724,8 @@ class Coordinator:
         data for the experiment under way."""
         if self.experiment is not None:
             self.experiment.record(loop, y, t_sampled, now)
+        if self.watching is not None:
+            self.watching.record(loop, y, t_sampled, now)
 
     def identified(self, now: int) -> Identification:
         """The experiment is over (at ``now``, ticks): fit the model's parameters to what was
@@ -660,8 +737,16 @@ class Coordinator:
         assert exp is not None, "identified() without an experiment under way"
         self.mode = exp.previous_mode
         cfg = exp.config
+        settle = 0.0 if exp.t0 == 0.0 else test_length(self.model)
+        if exp.t0 > 0.0 and not self.model.trials.design:  # the controllers do not drift
+            spec = self.model.trials.spec
+            design = {
+                p: {n: float(spec.plants[p].params[n]) for n in names}
+                for p, names in cfg.params.items()
+            }
+            self.model = LoopModel(self.model.trials.pinned(design), self.config)
         try:
-            fit = identify(self.model, cfg.params, exp.seen(self.delays))
+            fit = identify(self.model, cfg.params, exp.seen(self.delays, settle))
         except ValueError as err:
             reason = f"identification failed ({err}): the model stays as believed"
             return Identification(None, Decision(None, "reject", (reason,)), [])
@@ -674,16 +759,156 @@ class Coordinator:
             }
         self.model = LoopModel(self.model.trials.believing(fit.params, uncertainty), self.config)
         self._bounds = None
+        self.sigma = dict(fit.sigma)
         decision = Decision(None, "accept", tuple(_estimate_reasons(estimate)))
+        return Identification(estimate, decision, self._judge_running())
+
+    def _judge_running(self) -> list[Negotiation]:
+        """Judge again, on the model as it now is, the configuration each network runs: the
+        one the agent accepted, or the rejected one it runs for want of an alternative (a
+        rejection puts its loops at risk, an acceptance ends their risk)."""
         negotiations = []
-        for network, proposal in sorted(self._proposals.items()):
-            if self.accepted.get(network) != proposal.id or network in self.at_risk:
+        for network in sorted(set(self._proposals) | set(self.at_risk)):
+            running = self._proposals.get(network)
+            if network in self.at_risk:
+                pid = self.at_risk[network][0]
+                judged = self._judged.get(network)
+                running = judged if judged is not None and judged.id == pid else None
+            if running is None:
                 continue
-            neg = self.on_proposal(network, proposal)
+            neg = self.on_proposal(network, running)
             if neg.decision.verdict == "reject":
-                self.at_risk[network] = (proposal.id, tuple(neg.decision.offending))
+                self.at_risk[network] = (running.id, tuple(neg.decision.offending))
             negotiations.append(neg)
-        return Identification(estimate, decision, negotiations)
+        return negotiations
+
+    # -- the model watch (issue 35, item 4) ------------------------------------------------
+    def noise_levels(self) -> dict[str, float]:
+        """Each loop's noise level for the model watch: the last identification's residual
+        RMS, else the believed sensor noise."""
+        spec = self.model.trials.spec
+        out = {}
+        for n in self.loops:
+            judged = spec.loops[n]
+            believed = float(spec.plants[judged.plant].noise.get(judged.sensor, 0.0))
+            out[n] = self.sigma.get(n, believed)
+        return out
+
+    def pass_on(self, loop: str, value: float, now: int) -> None:
+        """``loop``'s set point is ``value`` from ``now`` (ticks): the agent passed it on."""
+        self.setpoints[loop] = value
+        self.history.append((to_units(now), loop, value))
+
+    def _watch_step(self, loop: str, value: float, when: int) -> None:
+        """A judged step at ``when`` (ticks) opens the model watch's window for the test's
+        length, or extends the open one if the loops sample as it assumes (a step that changed
+        the periods starts a window of its own). Its replay starts where the plant last sat
+        settled (:meth:`_settled_at`)."""
+        periods = {n: self.control_periods[n] for n in self.loops}
+        end = to_units(when) + test_length(self.model)
+        change = (to_units(when), loop, value)
+        w = self.watching
+        if w is not None and dict(w.periods) == periods:
+            w.changes, w.end = (*w.changes, change), max(w.end, end)
+            return
+        start = self._settled_at(when)
+        base = dict(self.spec.setpoints)
+        earlier = []
+        for t, lp, v in self.history:
+            if to_ticks(t) < start:
+                base[lp] = v
+            elif to_ticks(t) < when:
+                earlier.append((t, lp, v))
+        self.watching = Window(
+            t0=to_units(start),
+            since=to_units(when),
+            end=end,
+            base={n: float(base[n]) for n in self.loops},
+            changes=(*earlier, change),
+            periods=periods,
+        )
+
+    def _settled_at(self, when: int) -> int:
+        """The latest instant up to ``when`` (ticks) at which the plant had sat for the test's
+        length without a set-point change (the model's own start, 0, if none): where a replay
+        of what followed may start from the model settled."""
+        settle = to_ticks(test_length(self.model))
+        times = sorted({to_ticks(t) for t, _, _ in self.history if to_ticks(t) < when})
+        start = when
+        while start >= settle:
+            recent = [t for t in times if start - settle < t < start]
+            if not recent:
+                return start
+            start = min(recent)
+        return 0
+
+    def watched(self, now: int) -> Watched:
+        """The window after a judged step is over (at ``now``, ticks): score it on the model
+        (:func:`agents.wncsca.watch.score`), add the score to the CUSUM, and when the model no
+        longer fits, identify it again (``identify:``) or widen its stated uncertainty
+        (``watch.widen``) and judge the running configurations again."""
+        window, self.watching = self.watching, None
+        assert window is not None and self.watch is not None, "watched() without a window"
+        cfg = self.watch.config
+        s = score(
+            self.model,
+            window,
+            self.delays,
+            self.noise_levels(),
+            0.0 if window.t0 == 0.0 else test_length(self.model),
+            cfg.replays,
+            self.spec.seed,
+            self.watch.windows,
+        )
+        if s is None:
+            return Watched(None, None)
+        cusum_before = self.watch.cusum
+        flagged = self.watch.update(s)
+        total = cusum_before + s.z - cfg.allowance
+        test = f"CUSUM {max(total, 0.0):.3g} (h = {cfg.threshold:g}, k = {cfg.allowance:g})"
+        if not flagged:
+            return Watched(s, Decision(None, "accept", (f"{s.describe()}; {test}: model fits",)))
+        what = f"{s.describe()}; {test}: the model no longer fits its plant"
+        if self.config.identify is not None:
+            started = self.start_identification(now)
+            reasons = (what, "identification started: the model is fitted again")
+            return Watched(s, Decision(None, "reject", reasons), started)
+        widened = self._widened(cfg.widen)
+        if not widened:
+            reasons = (
+                what,
+                "no uncertainty stated to widen and no identify: configured; the guarantee "
+                "rests on a model that does not fit (state model.<plant>.uncertainty, or "
+                "configure identify:)",
+            )
+            return Watched(s, Decision(None, "reject", reasons))
+        self.model = LoopModel(self.model.trials.believing({}, widened), self.config)
+        self._bounds = None
+        said = ", ".join(
+            f"{p}.{n} {_spread(u)}"
+            for p, v in sorted(widened.items())
+            for n, u in sorted(v.items())
+        )
+        reasons = (what, f"uncertainty widened x{cfg.widen:g}: {said}; configurations judged again")
+        return Watched(s, Decision(None, "reject", reasons), None, self._judge_running())
+
+    def _widened(self, factor: float) -> dict[str, dict[str, ParameterUncertainty]]:
+        """The model's stated uncertainty, ``factor`` times wider (a standard deviation within
+        what an uncertainty can state, an interval's half-width about the believed value)."""
+        out: dict[str, dict[str, ParameterUncertainty]] = {}
+        for name, plant in sorted(self.model.trials.spec.plants.items()):
+            for param, u in sorted(plant.uncertainty.items()):
+                if u.rel_sd is not None:
+                    wider = ParameterUncertainty(rel_sd=min(u.rel_sd * factor, _REL_SD_MAX))
+                else:
+                    assert u.interval is not None
+                    value = float(plant.params[param])
+                    low, high = u.interval
+                    wider = ParameterUncertainty(
+                        interval=(value - factor * (value - low), value + factor * (high - value))
+                    )
+                out.setdefault(name, {})[param] = wider
+        return out
 
     def abort_identification(self) -> Decision | None:
         """Operations changed the mode while an experiment ran: it ends unfitted, its set
@@ -797,7 +1022,7 @@ def _estimate(exp: Experiment, fit: Identified, spec: ClosedLoopSpec, now: int) 
         p: {n: float(spec.plants[p].params[n]) for n in names} for p, names in fit.params.items()
     }
     return ModelEstimate(
-        t_start=0,
+        t_start=to_ticks(exp.t0),
         t_end=now,
         params={p: dict(v) for p, v in fit.params.items()},
         std={p: {n: fit.std(p, n) for n in names} for p, names in fit.params.items()},
@@ -808,6 +1033,13 @@ def _estimate(exp: Experiment, fit: Identified, spec: ClosedLoopSpec, now: int) 
         samples=exp.delivered(),
         trials=fit.trials,
     )
+
+
+def _spread(u: ParameterUncertainty) -> str:
+    if u.rel_sd is not None:
+        return f"+-{100 * u.rel_sd:.3g} % (1 sd)"
+    assert u.interval is not None
+    return f"in [{u.interval[0]:.5g}, {u.interval[1]:.5g}]"
 
 
 def _estimate_reasons(e: ModelEstimate) -> list[str]:

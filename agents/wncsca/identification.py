@@ -36,7 +36,8 @@ experiment's first set points; that is not built yet.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -48,7 +49,7 @@ from agents.wncsca.model import LoopModel
 from agents.wncsca.uncertainty import plant_model
 from core.time import to_ticks
 
-__all__ = ["ClosedLoopExperiment", "Identified", "identify", "BOOTSTRAP"]
+__all__ = ["ClosedLoopExperiment", "Identified", "identify", "trial_outputs", "BOOTSTRAP"]
 
 BOOTSTRAP = 20
 """Replicates of the parametric bootstrap that gives the estimate's covariance."""
@@ -85,6 +86,8 @@ class ClosedLoopExperiment:
     delays: Mapping[str, float]
     traces: Mapping[str, list[float | None]]
     samples: Mapping[str, tuple[Sequence[float], Sequence[float]]]
+    offsets: Mapping[str, float] = field(default_factory=dict)
+    """Loop -> its first sampling instant in the replay (time units; none named: 0)."""
 
 
 @dataclass(frozen=True)
@@ -195,13 +198,16 @@ class _Fit:
     def outputs(self, theta: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """The quiet trial's outputs with parameters ``theta`` at the delivered instants."""
         self.trials += 1
-        return _trial_outputs(self.model, self.experiment, self.params_of(theta), noise=self.quiet)
+        return trial_outputs(self.model, self.experiment, self.params_of(theta), noise=self.quiet)
 
     def solve(self, y: NDArray[np.float64], theta0: NDArray[np.float64]) -> Any:
         """``least_squares`` of ``y`` against the quiet trials' outputs from ``theta0``."""
 
         def residuals(theta: NDArray[np.float64]) -> NDArray[np.float64]:
-            outputs = self.outputs(theta)
+            try:
+                outputs = self.outputs(theta)
+            except ValueError:  # parameters the model refuses (e.g. no equilibrium holds r)
+                return np.full(len(y), DIVERGED)
             r = y - np.concatenate([outputs[n] for n in self.loops])
             return np.where(np.isfinite(r), r, DIVERGED)
 
@@ -233,6 +239,7 @@ class _Fit:
             self.params_of(theta),
             noise=noise,
             seed=seed,
+            offsets=exp.offsets,
         )
         self.trials += 1
         out = []
@@ -244,15 +251,17 @@ class _Fit:
         return np.asarray(out)
 
 
-def _trial_outputs(
+def trial_outputs(
     model: LoopModel,
     experiment: ClosedLoopExperiment,
     params: Mapping[str, Mapping[str, float]],
     *,
     noise: Mapping[str, Mapping[str, float]],
+    seed: int | None = None,
 ) -> dict[str, NDArray[np.float64]]:
-    """The model's outputs, with ``params`` and measurement ``noise``, at each delivered
-    sample's instant (by loop)."""
+    """The model's outputs (its plants' true outputs, not the noisy samples), with ``params``
+    and measurement ``noise`` (under ``seed``, default the model's), at each delivered sample's
+    instant (by loop)."""
     spec = model.trials.spec
     rec = model.trials.run_steps(
         experiment.periods,
@@ -262,6 +271,8 @@ def _trial_outputs(
         experiment.traces,
         params,
         noise=noise,
+        seed=seed,
+        offsets=experiment.offsets,
     )
     model.simulations += 1
     out = {}
@@ -269,11 +280,35 @@ def _trial_outputs(
         judged = spec.loops[loop]
         plant = plant_model(spec.plants[judged.plant], params.get(judged.plant, {}))
         states = rec.plants[judged.plant]
-        where = {t: i for i, t in enumerate(states.t)}
         k = plant.output_names.index(judged.sensor)
-        values = []
-        for t in t_sampled:
-            i = where.get(to_ticks(float(t)))
-            values.append(np.nan if i is None else float(plant.outputs(states.x[i])[k]))
-        out[loop] = np.asarray(values)
+        out[loop] = _output_at(states.t, states.x, partial(_output, plant, k), t_sampled)
     return out
+
+
+def _output(plant: Any, k: int, x: Sequence[float]) -> float:
+    return float(plant.outputs(x)[k])
+
+
+def _output_at(
+    grid: Sequence[int], states: Sequence[Sequence[float]], output: Any, at: Sequence[float]
+) -> NDArray[np.float64]:
+    """``output(state)`` at the instants ``at`` (time units) from the states on the monitoring
+    ``grid`` (ticks): exact on the grid, linear between its points, NaN outside it."""
+    ticks = np.asarray(grid, dtype=np.int64)
+    values = np.full(len(at), np.nan)
+    cache: dict[int, float] = {}
+
+    def y(i: int) -> float:
+        if i not in cache:
+            cache[i] = float(output(states[i]))
+        return cache[i]
+
+    for j, t in enumerate(at):
+        tick = to_ticks(float(t))
+        i = int(np.searchsorted(ticks, tick))
+        if i < len(ticks) and ticks[i] == tick:
+            values[j] = y(i)
+        elif 0 < i < len(ticks):
+            w = (tick - ticks[i - 1]) / (ticks[i] - ticks[i - 1])
+            values[j] = (1.0 - w) * y(i - 1) + w * y(i)
+    return values

@@ -137,6 +137,12 @@ class Trial:
     (an empty mapping: none; ``None``: the model's own), as identification needs it."""
     seed: int | None = None
     """The trial's seed (its noise realization); ``None``: the model's."""
+    design: Mapping[str, Mapping[str, float]] | None = None
+    """Plant -> the parameters its controllers' steady-state feedforward is designed on
+    (``None``: the trial's plant's own, as :attr:`params` set them)."""
+    offsets: Mapping[str, float] | None = None
+    """Loop -> its sensor's first sampling instant (time units; none named: 0), as a replay of
+    the run's sampling grid needs it (:mod:`agents.wncsca.window`)."""
 
 
 class Simulator(Protocol):

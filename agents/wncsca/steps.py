@@ -57,6 +57,7 @@ __all__ = [
     "Alternative",
     "judge_step",
     "safe_alternative",
+    "staircase",
     "test_length",
 ]
 
@@ -165,15 +166,19 @@ def judge_step(
             t_step = to_units((to_ticks(settle) // p) * p + (int(phases[r]) * p) // PHASES)
             steps = [(0.0, name, float(v)) for name, v in sorted(setpoints.items())]
             start = float(setpoints[loop])
-            staircase = _staircase(t_step, start, float(value), periods[loop], ramp)
-            steps += [(t, loop, v) for t, v in staircase]
+            stairs = staircase(t_step, start, float(value), periods[loop], ramp)
+            steps += [(t, loop, v) for t, v in stairs]
             end = t_step + ramp + settle
             traces = _traces(laws, delays, periods, end, u_delay, u_loss, r)
             params = draws.sets[r % len(draws.sets)] or None  # the model's draws in turn
-            rec = model.trials.run_steps(periods, delays, steps, end, traces, params)
+            try:
+                rec = model.trials.run_steps(periods, delays, steps, end, traces, params)
+            except ValueError:  # a plant of the belief that cannot hold the set point fails
+                overshoots.append(math.inf)
+                continue
             model.simulations += 1
             if ramp > 0.0:
-                overshoots.append(_ramp_overshoot(model, rec, loop, start, staircase))
+                overshoots.append(_ramp_overshoot(model, rec, loop, start, stairs))
             else:
                 overshoots.append(_step_overshoot(rec, loop, t_step))
         os = np.asarray(overshoots)
@@ -227,7 +232,7 @@ def _traces(
     return out
 
 
-def _staircase(
+def staircase(
     t_step: float, start: float, value: float, period: float, ramp: float
 ) -> list[tuple[float, float]]:
     """The set-point changes of a step at ``t_step`` (one), or of a ramp over ``ramp``: one

@@ -34,6 +34,9 @@ class Trials:
         self._belief: dict[str, dict[str, float]] = {}
         """Plant -> parameters believed since the simulator was built (:meth:`believing`):
         every trial carries them, under its own draw."""
+        self.design: dict[str, dict[str, float]] = {}
+        """Plant -> the parameters its controllers' feedforward is pinned to (:meth:`pinned`;
+        none: the feedforward is designed on each trial's plant, as built)."""
 
     def believing(
         self,
@@ -44,8 +47,20 @@ class Trials:
         an identification's estimate and its uncertainty), by the same simulator."""
         out = Trials(believing(self.spec, params, uncertainty), self._simulate)
         out._belief = {p: dict(v) for p, v in self._belief.items()}
+        out.design = {p: dict(v) for p, v in self.design.items()}
         for plant, values in params.items():
             out._belief.setdefault(plant, {}).update(values)
+        return out
+
+    def pinned(self, design: Mapping[str, Mapping[str, float]]) -> Trials:
+        """These trials with the controllers' feedforward designed on ``design`` (plant ->
+        parameters) whatever plant a trial runs: the controllers were built on the plant as it
+        was, and do not drift with it (the trials' plants still follow belief and draws)."""
+        out = Trials(self.spec, self._simulate)
+        out._belief = {p: dict(v) for p, v in self._belief.items()}
+        out.design = {p: dict(v) for p, v in self.design.items()}
+        for plant, values in design.items():
+            out.design.setdefault(plant, {}).update(values)
         return out
 
     def _trial(
@@ -58,6 +73,7 @@ class Trials:
         params: Mapping[str, Mapping[str, float]] | None = None,
         noise: Mapping[str, Mapping[str, float]] | None = None,
         seed: int | None = None,
+        offsets: Mapping[str, float] | None = None,
     ) -> Trial:
         return Trial(
             periods={n: float(periods.get(n, self.benchmark[n])) for n in self.loops},
@@ -68,6 +84,8 @@ class Trials:
             params=self._believed(params),
             noise=noise,
             seed=seed,
+            design=self.design or None,
+            offsets=offsets,
         )
 
     def _believed(
@@ -112,16 +130,17 @@ class Trials:
         params: Mapping[str, Mapping[str, float]] | None = None,
         noise: Mapping[str, Mapping[str, float]] | None = None,
         seed: int | None = None,
+        offsets: Mapping[str, float] | None = None,
     ) -> RunRecord:
         """One trial with these set-point ``steps`` (``(t, loop, value)``, time units) instead
         of the test's, run to ``end_time``, with each loop's sensor-path delays replayed from
         ``traces`` (default: the constant ``delays``), the plants' parameters replaced by
         ``params`` (default: the model's) and their measurement noise by ``noise`` under
-        ``seed`` (default: the model's own). The steps keep the test's first step's lead
-        (``announce``)."""
+        ``seed`` (default: the model's own), each loop's first sample at its ``offsets`` (default
+        0). The steps keep the test's first step's lead (``announce``)."""
         lead = self.spec.steps[0].announce
         judged = tuple(Step(float(t), loop, float(v), lead) for t, loop, v in steps)
-        trial = self._trial(periods, delays, judged, end_time, traces, params, noise, seed)
+        trial = self._trial(periods, delays, judged, end_time, traces, params, noise, seed, offsets)
         return self._simulate(trial)
 
     def run_replay(

@@ -30,6 +30,7 @@ import itertools
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -135,16 +136,65 @@ def model_draws(spec: ClosedLoopSpec, config: WncscaConfig, seed: int) -> ModelD
         sets = tuple(_set(uncertain, corner) for corner in itertools.product(*boxes))
         return ModelDraws("robust", sets, stated)
     rng = np.random.default_rng([seed, 35, 2])
+    draws = _draw(rng, uncertain, config.model_draws)
+    holds = partial(_holds, spec)
+    for i in range(len(draws)):
+        for _ in range(_REDRAWS):
+            if holds(_set(uncertain, draws[i])):
+                break
+            draws[i] = _draw(rng, uncertain, 1)[0]
+        else:
+            raise ValueError(
+                f"model uncertainty: no draw of {[f'{p}.{n}' for p, n, _, _ in uncertain]} in "
+                f"{_REDRAWS} holds the test's set points; the stated uncertainty is too wide"
+            )
+    return ModelDraws("probability", tuple(_set(uncertain, row) for row in draws), stated)
+
+
+_REDRAWS = 100
+"""Draws tried for one parameter set before the stated uncertainty is called too wide."""
+
+
+def _draw(
+    rng: np.random.Generator, uncertain: list[tuple[str, str, float, ParameterUncertainty]], n: int
+) -> np.ndarray:
+    """``n`` parameter sets (rows) of the beliefs (module docstring)."""
     columns = []
     for _, _, value, spread in uncertain:
         if spread.interval is not None:
-            columns.append(rng.uniform(*spread.interval, size=config.model_draws))
+            columns.append(rng.uniform(*spread.interval, size=n))
         else:
             assert spread.rel_sd is not None
-            z = _truncated_normal(rng, config.model_draws)
+            z = _truncated_normal(rng, n)
             columns.append(value * (1.0 + spread.rel_sd * z))
-    draws = np.column_stack(columns)
-    return ModelDraws("probability", tuple(_set(uncertain, row) for row in draws), stated)
+    return np.column_stack(columns)
+
+
+def _holds(spec: ClosedLoopSpec, params: ParamSet) -> bool:
+    """Whether each plant with ``params`` has an equilibrium at every set point of the test
+    (its loops' initial set points, then after each step), where the model can say (a plant
+    whose outputs are all its loops' sensors and that has an ``equilibrium``). A draw that
+    cannot hold them is no plant the agent runs: it is drawn again (the belief truncated to
+    plants that do what this one does)."""
+    for name, plant in spec.plants.items():
+        loops = [lp for lp in spec.loops.values() if lp.plant == name]
+        model = plant_model(plant, params.get(name, {}))
+        if not hasattr(model, "equilibrium") or set(model.output_names) != {
+            lp.sensor for lp in loops
+        }:
+            continue
+        y_bar = {lp.sensor: float(lp.setpoint) for lp in loops}
+        points = [dict(y_bar)]
+        for step in spec.steps:
+            if step.loop in spec.loops and spec.loops[step.loop].plant == name:
+                y_bar[spec.loops[step.loop].sensor] = float(step.value)
+                points.append(dict(y_bar))
+        try:
+            for point in points:
+                model.equilibrium(point)
+        except ValueError:
+            return False
+    return True
 
 
 def _truncated_normal(rng: np.random.Generator, n: int) -> np.ndarray:
