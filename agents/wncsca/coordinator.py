@@ -221,6 +221,12 @@ class Coordinator:
         self.history: list[tuple[float, str, float]] = []
         """Every set-point change passed on to the loops (time units, loop, value), in order."""
         self.watch = Watch(self.config.watch) if self.config.watch is not None else None
+        self._recent: dict[str, dict[int, tuple[float, int]]] = {n: {} for n in self.loops}
+        """The model watch's memory: loop -> sampling instant -> (value, delay), ticks, of the
+        samples delivered over the last :data:`_KEPT` test lengths (a window's replay starts
+        where the plant last sat settled, and its delays are those the samples travelled)."""
+        self._kept_since = 0
+        """Ticks: :attr:`_recent` holds every delivered sample taken since then."""
         self.watching: Window | None = None
         """The window after a judged step that the model watch will judge at its end."""
 
@@ -724,8 +730,23 @@ class Coordinator:
         data for the experiment under way."""
         if self.experiment is not None:
             self.experiment.record(loop, y, t_sampled, now)
+        if self.watch is not None:
+            self._remember(loop, y, t_sampled, now)
         if self.watching is not None:
             self.watching.record(loop, y, t_sampled, now)
+
+    def _remember(self, loop: str, y: float, t_sampled: int, now: int) -> None:
+        """Keep a delivered sample for the windows to come; forget those older than
+        :data:`_KEPT` test lengths (checked once a test length)."""
+        if loop not in self._recent:
+            return
+        self._recent[loop][t_sampled] = (float(y), now - t_sampled)
+        horizon = _KEPT * to_ticks(test_length(self.model))
+        if now - horizon > self._kept_since + horizon // _KEPT:
+            self._kept_since = now - horizon
+            for kept in self._recent.values():
+                for t in [t for t in kept if t < self._kept_since]:
+                    del kept[t]
 
     def identified(self, now: int) -> Identification:
         """The experiment is over (at ``now``, ticks): fit the model's parameters to what was
@@ -822,11 +843,15 @@ class Coordinator:
         self.watching = Window(
             t0=to_units(start),
             since=to_units(when),
+            kept=to_units(max(start, self._kept_since)),
             end=end,
             base={n: float(base[n]) for n in self.loops},
             changes=(*earlier, change),
             periods=periods,
         )
+        for loop, kept in self._recent.items():
+            for t, (y, delay) in kept.items():
+                self.watching.record(loop, y, t, t + delay)
 
     def _settled_at(self, when: int) -> int:
         """The latest instant up to ``when`` (ticks) at which the plant had sat for the test's
@@ -1003,6 +1028,9 @@ def _weights(paths: Mapping[str, PathConfig], loops: tuple[str, ...]) -> dict[st
             out[loop] = float(entry.hops) if out[loop] == 1.0 else out[loop] + entry.hops
     return out
 
+
+_KEPT = 4
+"""Test lengths of delivered samples the model watch keeps for the windows to come."""
 
 _REL_SD_MAX = 0.3
 """The largest relative standard deviation a stated uncertainty takes

@@ -27,10 +27,10 @@ the replicates' covariance as the estimate's. It becomes the agent's uncertainty
 identified parameters (a relative standard deviation each), so its guarantee covers what
 identification left unknown. Both covariances are kept (:class:`Identified`).
 
-The trial starts from the model's initial state, so an experiment's time 0 is the run's: the
-identification mode at the start of a run (the ICAM's own order: identification, then control).
-An experiment later in a run would start the trial from the state the model settles to at the
-experiment's first set points; that is not built yet.
+The trial starts from the model's initial state: an experiment at the run's start is replayed
+from there, a later one after the model settles at the set points it started from
+(:meth:`agents.wncsca.window.Window.seen`). A candidate the model refuses (no equilibrium holds a
+set point of the experiment) is a diverged residual, which the search steps back from.
 """
 
 from __future__ import annotations

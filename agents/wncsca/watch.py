@@ -56,8 +56,10 @@ __all__ = ["Score", "StepFit", "Watch", "score", "STREAM", "SIGMA_FLOOR"]
 STREAM = 37
 """The watch's replays' seeds: ``[run seed, STREAM, window, replay]``."""
 
-SIGMA_FLOOR = 1e-9
-"""The smallest noise level a loop is judged at (a noise-free sensor: any misfit counts)."""
+SIGMA_FLOOR = 1e-3
+"""The smallest noise level a loop is judged at, relative to its set point's magnitude (a
+sensor's resolution of 0.1 % of its reading): a noise-free sensor's samples are still compared
+with a replay that is not exact (delays before the window, the grid of another period)."""
 
 
 @dataclass(frozen=True)
@@ -164,7 +166,10 @@ def score(
     if not loops or not any(to_ticks(t) >= to_ticks(window.start) for t, _, _ in window.changes):
         return None
     spec = model.trials.spec
-    noise_of = {n: max(float(sigma.get(n, 0.0)), SIGMA_FLOOR) for n in loops}
+    noise_of = {
+        n: max(float(sigma.get(n, 0.0)), SIGMA_FLOOR * abs(float(window.base[n])), 1e-12)
+        for n in loops
+    }
     quiet: dict[str, dict[str, float]] = {p: {} for p in spec.plants}
     try:
         predicted = trial_outputs(model, exp, {}, noise=quiet)

@@ -3,8 +3,11 @@ and 4).
 
 The agent does not see its plant: it sees the set points it passed on and the samples the
 network delivered (``loop/<l>/meas``: a value, the instant it was taken, the instant it
-arrived; a lost sample is absent). A :class:`Window` keeps them from :attr:`~Window.since` to
-:attr:`~Window.end`, with the set points from :attr:`~Window.t0`, where its replay starts, and
+arrived; a lost sample is absent). A :class:`Window` keeps them from :attr:`~Window.kept` (where
+its replay starts, :attr:`~Window.t0`, unless the agent had not kept samples so far back) to
+:attr:`~Window.end`, with the set points from :attr:`~Window.t0`; the samples from
+:attr:`~Window.since` are the ones its replay is compared with. :meth:`Window.seen` turns them
+into the
 :meth:`Window.seen` turns them into the
 :class:`~agents.wncsca.identification.ClosedLoopExperiment` that the agent's trials replay: the
 identification experiment fits its model to one (:mod:`agents.wncsca.experiment`), and the model
@@ -22,7 +25,8 @@ gave it (:meth:`Window.phase`: the phase most of its delivered samples share; a 
 was taken under another period, and is left out and counted in :attr:`Window.off_grid`). The
 replay samples each loop on the same grid (its first sample at the replay's offset of that
 phase) and gives each trial sample the delay its run sample travelled (``None``: lost); before
-:attr:`~Window.since`, where the window kept nothing, the loop's median delivered delay.
+:attr:`~Window.since`, where a sample of the window's grid may be missing because nothing was
+kept so far back or the loop sampled at another period then, the loop's median delivered delay.
 """
 
 from __future__ import annotations
@@ -61,18 +65,29 @@ class Window:
     changes: tuple[tuple[float, str, float], ...]
     periods: Mapping[str, float]
     since: float | None = None
-    """Samples taken from here count (time units; ``None``: from :attr:`t0`)."""
+    """The samples taken from here are compared with the replay (time units; ``None``: from
+    :attr:`t0`)."""
+    kept: float | None = None
+    """Samples taken from here are kept (time units; ``None``: from :attr:`t0`); before it
+    the replay's samples travel the median delay."""
     samples: dict[str, dict[int, tuple[float, int]]] = field(default_factory=dict)
     """Loop -> sampling instant (ticks) -> (value, delay in ticks) of its delivered samples."""
 
     @property
     def start(self) -> float:
-        """Where the samples that count start (time units)."""
+        """Where the samples compared with the replay start (time units)."""
         return self.t0 if self.since is None else self.since
+
+    @property
+    def kept_from(self) -> float:
+        """Where the samples kept start (time units)."""
+        return self.t0 if self.kept is None else self.kept
 
     def record(self, loop: str, value: float, t_sampled: int, now: int) -> None:
         """A sample of ``loop`` taken at ``t_sampled`` and delivered at ``now`` (ticks)."""
-        if loop not in self.periods or not to_ticks(self.start) <= t_sampled < to_ticks(self.end):
+        if loop not in self.periods or not to_ticks(self.kept_from) <= t_sampled < to_ticks(
+            self.end
+        ):
             return
         self.samples.setdefault(loop, {})[t_sampled] = (float(value), now - t_sampled)
 
@@ -119,9 +134,12 @@ class Window:
             traces[loop] = self._trace(loop, got, offset, lag, end)
             if offset:
                 offsets[loop] = to_units(offset)
-            if got:
-                ts = sorted(got)
-                samples[loop] = ([to_units(t + lag) for t in ts], [got[t][0] for t in ts])
+            compared = sorted(t for t in got if t >= to_ticks(self.start))
+            if compared:
+                samples[loop] = (
+                    [to_units(t + lag) for t in compared],
+                    [got[t][0] for t in compared],
+                )
         return ClosedLoopExperiment(
             steps=steps,
             end_time=to_units(end),
@@ -135,15 +153,19 @@ class Window:
     def _trace(
         self, loop: str, got: Mapping[int, tuple[float, int]], offset: int, lag: int, end: int
     ) -> list[float | None]:
-        """Each replayed sample's sensor delay: the run's sample at the same instant (``None``:
-        lost), the median delivered one before :attr:`start`."""
+        """Each replayed sample's sensor delay: the run's sample at the same instant; where
+        there is none, ``None`` (lost) from :attr:`start` on, the median delivered delay before
+        (nothing kept there, or the loop sampled at another period then)."""
         settling = to_units(int(np.median([d for _, d in got.values()]))) if got else 0.0
-        since = to_ticks(self.start)
+        kept, since = to_ticks(self.kept_from), to_ticks(self.start)
         out: list[float | None] = []
         for tau in range(offset, end, to_ticks(self.periods[loop])):
             t = tau - lag
             hit = got.get(t)
-            out.append(settling if t < since else None if hit is None else to_units(hit[1]))
+            if hit is not None and t >= kept:
+                out.append(to_units(hit[1]))
+            else:  # lost where compared; before, unknown (not kept, or another period then)
+                out.append(None if t >= since else settling)
         return out
 
     def cost(self) -> dict[str, float]:

@@ -23,10 +23,12 @@ JITTER = SCENARIOS / "jcstr_wncs_jitter.yaml"
 
 
 def _with_a_downward_step(data: dict) -> None:
-    """To 7 pu, and a 4 C downward temperature step requested at 6 pu."""
-    data["end_time"] = 7.0
+    """To 10.6 pu, a 4 C downward temperature step requested at 6 pu, and the model watch
+    (its window after the paper's steps ends at 2.4 + 8 = 10.4 pu)."""
+    data["end_time"] = 10.6
     data["modes"] = []
     data["setpoints"].append({"t": 6.0, "loop": "temperature", "value": 52.0})
+    data["nodes"]["wncsca"]["watch"] = {}
 
 
 def _run(tmp_path, engine: str) -> dict:
@@ -72,6 +74,12 @@ def test_a_downward_temperature_step_is_refused_naming_loop_step_and_overshoot(d
     # the paper's two steps were judged and let through at the negotiated periods
     judged = [d for d in w["decisions"] if d["subject"] == "setpoint" and d["verdict"] == "accept"]
     assert len(judged) == 2 and all("at the control periods" in d["reasons"][-1] for d in judged)
+    # the model watch, after both (a refused step moves nothing): the exact model fits
+    (watched,) = [d for d in w["decisions"] if d["subject"] == "model"]
+    assert watched["verdict"] == "accept" and watched["t"] == pytest.approx(10.4)
+    assert "level 0.7 -> 0.75 at t=1.8" in watched["reasons"][0]
+    assert "temperature 52 -> 56 at t=2.4" in watched["reasons"][0]
+    assert watched["reasons"][0].endswith("model fits")
 
 
 def test_a_refused_step_names_its_safe_ramp_and_the_ramp_keeps_the_limit(direct_run):
