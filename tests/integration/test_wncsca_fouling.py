@@ -107,3 +107,28 @@ def test_the_agent_judges_again_on_the_fouled_model_and_its_steps_keep_the_limit
         after = [x for x in loop_metrics(rec, loop)["steps"] if x["t"] in requested]
         assert after, loop
         assert all(x["overshoot_pct"] <= limit for x in after), after
+
+
+def test_a_refused_step_that_asked_for_it_is_applied_as_its_safe_ramp(run):
+    s, rec = run
+    (asked,) = [c for c in s.setpoints if c.safe_ramp and c.t < END]
+    d = next(
+        d
+        for d in rec.wncsca["decisions"]
+        if d["subject"] == "setpoint" and to_units(d["t"]) == asked.t
+    )
+    assert d["verdict"] == "accept" and "refused" in d["reasons"][1]
+    offer = d["reasons"][2]
+    duration = float(offer.split(" over ")[1].split(" time units")[0])
+    period = float(offer.split("temperature ")[-1])
+    moves = [
+        (to_units(t), v)
+        for t, v in rec.loops["temperature"].setpoints
+        if asked.t < to_units(t) <= asked.t + duration + 1e-9
+    ]
+    k = round(duration / period)  # one move per control period, the last to the value asked
+    assert f"as a ramp of {k} moves" in d["reasons"][0]
+    assert [v for _, v in moves] == pytest.approx([56.0 - 4.0 * i / k for i in range(1, k + 1)])
+    assert [t for t, _ in moves] == pytest.approx(
+        [asked.t + duration * i / k for i in range(1, k + 1)], abs=1e-6
+    )
