@@ -22,7 +22,14 @@ Variants:
 A variant whose proposal the agent rejects (no periods keep the guarantee) runs at the benchmark
 periods the agent keeps, and says so.
 
+``--identify`` adds the variant ``U 10 %, identified``: for each case the agent runs on *that*
+reactor, believing the scenario's (U stated at 10 %, 1 sd), with noisy sensors (0.002 pu,
+0.05 C), identifies U first (``identify:`` over 8 pu, as ``scenarios/jcstr_fouling.yaml`` does;
+only U is fitted, so a C_p or T_jin error is absorbed into an effective U) and judges again on
+the estimate; the periods it assigns then are run over the seeds on that reactor like the others.
+
     python bench/wncsca_model_error.py [--seeds 20] [--jobs 2] [--variants "exact,U 10 %"]
+        [--identify]
 """
 
 from __future__ import annotations
@@ -110,6 +117,42 @@ def decide(variant: str) -> dict[str, Any]:
     }
 
 
+IDENTIFIED = "U 10 %, identified"
+IDENTIFY = {
+    "params": {"reactor": ["U"]},
+    "duration": 8.0,
+    "clock": 0.4,
+    "amplitude": {"level": 0.02, "temperature": 1.0},
+}
+
+
+def decide_identified(case: str) -> dict[str, Any]:
+    """The agent's assignment after identifying U on the true reactor of ``case``."""
+    t0 = time.perf_counter()
+    data = load_scenario(JITTER).model_dump()
+    reactor = data["nodes"]["reactor"]
+    for name, factor in CASES[case].items():
+        reactor["params"][name] = TRUE[name] * factor
+    reactor["noise"] = {"H": 0.002, "T": 0.05}
+    data["nodes"][AGENT].update(
+        model={"reactor": {"params": dict(TRUE), "uncertainty": {"U": {"rel_sd": 0.1}}}},
+        identify=IDENTIFY,
+    )
+    data["setpoints"], data["modes"], data["end_time"] = [], [], IDENTIFY["duration"] + 0.1
+    rec = simulate(Scenario.model_validate(data))
+    rates = [r for r in rec.wncsca["rates"] if r.get("assignment")]
+    (estimate,) = rec.wncsca["models"]
+    u, sd = estimate["params"]["reactor"]["U"], estimate["std"]["reactor"]["U"]
+    return {
+        "variant": f"{IDENTIFIED}: {case}",
+        "periods": {n: to_units(p) for n, p in rates[-1]["control_periods"].items()},
+        "verdict": "accept" if rates else "reject",
+        "reasons": [f"identified U = {u:.5f} +- {1.96 * sd:.5f} (95 %)"],
+        "wall_s": time.perf_counter() - t0,
+        "energy": rates[-1].get("energy") if rates else None,
+    }
+
+
 def measure(periods: dict[str, float], case: str, seed: int) -> list[float]:
     """The measured overshoots of the paper's steps at fixed ``periods`` with the true reactor of
     ``case``, network seed ``seed`` (no agent: the periods are what it assigned)."""
@@ -136,11 +179,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="parallel processes (default 1)")
     ap.add_argument("--limit", type=float, default=25.0, help="overshoot limit, %% (25)")
     ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated")
+    ap.add_argument("--identify", action="store_true", help=f"add the variant {IDENTIFIED!r}")
     args = ap.parse_args(argv)
-    variants = args.variants.split(",")
+    variants = [v for v in args.variants.split(",") if v]
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
         decided = list(ex.map(decide, variants))
-        for d in decided:
+        identified = list(ex.map(decide_identified, CASES)) if args.identify else []
+        for d in decided + identified:
             per = ", ".join(f"{n} {p:g}" for n, p in sorted(d["periods"].items()))
             life = d["energy"] or {}
             print(
@@ -149,10 +194,17 @@ def main(argv: list[str] | None = None) -> int:
                 f"{d['wall_s']:.0f} s)"
             )
             for line in d["reasons"]:
-                if line.startswith(("model uncertainty", "no sampling periods")):
+                if line.startswith(("model uncertainty", "no sampling periods", "identified")):
                     print(f"  {line}")
         tasks = [(d["periods"], c, s) for d in decided for c in CASES for s in range(args.seeds)]
+        tasks += [
+            (d["periods"], c, s)
+            for d, c in zip(identified, list(CASES)[: len(identified)], strict=True)
+            for s in range(args.seeds)
+        ]
         results = list(ex.map(measure, *zip(*tasks, strict=True)))
+    if identified:
+        variants.append(IDENTIFIED)
     print(f"\n## {JITTER.name}: {args.seeds} network seeds, direct engine\n")
     print("| true plant vs the agent's model | " + " | ".join(variants) + " |")
     print("|---|" + "---:|" * len(variants))
@@ -165,6 +217,12 @@ def main(argv: list[str] | None = None) -> int:
                 steps += results[k]
                 k += 1
             table[(d["variant"], case)] = steps
+    for case in CASES if identified else ():
+        steps = []
+        for _ in range(args.seeds):
+            steps += results[k]
+            k += 1
+        table[(IDENTIFIED, case)] = steps
     for case in CASES:
         cells = []
         for v in variants:
