@@ -17,6 +17,7 @@ itself.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from agents.wncsca.config import WncscaConfig
 from agents.wncsca.coordinator import Coordinator
@@ -52,13 +53,20 @@ def behaviour_of(scenario: Scenario, name: str) -> Behaviour:
     return build(name, scenario, simulate)
 
 
-def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
+def simulate(
+    scenario: Scenario,
+    *,
+    engine: str = "direct",
+    observe: Callable[[list[Message]], None] | None = None,
+) -> RunRecord:
     """Run ``scenario`` on the direct engine and return its record.
 
     Parameters
     ----------
     scenario : Scenario
         A validated scenario; use :meth:`Scenario.with_loops` to vary ``tau_s`` / ``tau_d``.
+    observe : callable, optional
+        Called with each round's messages as the bus would carry them (a test's witness).
     """
     wall0 = time.perf_counter()
     behaviours = {name: behaviour_of(scenario, name) for name in sorted(scenario.nodes)}
@@ -68,6 +76,8 @@ def simulate(scenario: Scenario, *, engine: str = "direct") -> RunRecord:
         for m in messages:
             # the record keeps some bodies whole (decisions, proposals): those as the bus has them
             builder.add(m.t, m.key, m.mapping if builder.keeps(m.key) else m.fields)
+        if observe is not None:
+            observe(messages)
 
     run = DirectEngine(
         behaviours,

@@ -19,6 +19,7 @@ import pytest
 from core.record import loop_metrics
 from core.time import to_units
 from runtime.direct import simulate
+from runtime.ownership import owners_of, publishers
 from scenario import Scenario, load_scenario
 from tests.conftest import SCENARIOS
 
@@ -42,8 +43,22 @@ def _u(t: float, s: Scenario) -> float:
 @pytest.fixture(scope="module")
 def run():
     s = load_scenario(FOULING)
-    rec = simulate(Scenario.model_validate({**s.model_dump(), "end_time": END}))
-    return s, rec
+    seen: set[tuple[str, str]] = set()
+    rec = simulate(
+        Scenario.model_validate({**s.model_dump(), "end_time": END}),
+        observe=lambda messages: seen.update((m.key, m.src) for m in messages),
+    )
+    return s, rec, seen
+
+
+def test_every_message_comes_from_an_owner_of_its_key(run):
+    """tests/unit/test_ownership.py's check, on this run (it does not run the scenario again):
+    the drift, the experiments' set points, the estimates and the watch's verdicts included."""
+    s, _, seen = run
+    table = publishers(s)
+    assert {"wncsca/model", "plant/reactor/drift"} <= {key for key, _ in seen}
+    strays = sorted((key, src) for key, src in seen if src not in owners_of(table, key))
+    assert strays == []
 
 
 def _models(rec) -> list[dict]:
@@ -51,7 +66,7 @@ def _models(rec) -> list[dict]:
 
 
 def test_the_agent_identifies_its_model_first_and_the_watch_finds_it_fits(run):
-    s, rec = run
+    s, rec, _ = run
     first = rec.wncsca["models"][0]
     u, sd = first["params"]["reactor"]["U"], first["std"]["reactor"]["U"]
     assert first["was"]["reactor"]["U"] == 0.1919
@@ -76,7 +91,7 @@ def test_the_agent_identifies_its_model_first_and_the_watch_finds_it_fits(run):
 
 
 def test_the_watch_flags_the_fouling_and_the_agent_identifies_again(run):
-    s, rec = run
+    s, rec, _ = run
     flagged = [d for d in _models(rec) if d["verdict"] == "reject"]
     assert flagged, "the fouling was never flagged"
     t_flag = to_units(flagged[0]["t"])
@@ -91,7 +106,7 @@ def test_the_watch_flags_the_fouling_and_the_agent_identifies_again(run):
 
 
 def test_the_agent_judges_again_on_the_fouled_model_and_its_steps_keep_the_limit(run):
-    s, rec = run
+    s, rec, _ = run
     second = rec.wncsca["models"][1]
     again = [
         d for d in rec.wncsca["decisions"] if d["subject"] == "proposal" and d["t"] == second["t"]
@@ -110,7 +125,7 @@ def test_the_agent_judges_again_on_the_fouled_model_and_its_steps_keep_the_limit
 
 
 def test_a_refused_step_that_asked_for_it_is_applied_as_its_safe_ramp(run):
-    s, rec = run
+    s, rec, _ = run
     (asked,) = [c for c in s.setpoints if c.safe_ramp and c.t < END]
     d = next(
         d
