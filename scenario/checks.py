@@ -27,6 +27,7 @@ from controllers.registry import (
     uses_feedforward,
 )
 from core.time import to_ticks
+from plants import registry
 from scenario.schema import (
     ControllerNodeConfig,
     GatewayNodeConfig,
@@ -458,7 +459,21 @@ def check_modes(s: ScenarioSchema) -> None:
 
 
 def check_feedforward(s: ScenarioSchema) -> None:
-    """Every steady-state feedforward must be computable at every scheduled set point."""
+    """A controller's ``feedforward_params`` name numeric parameters of its loops' plant, and
+    every steady-state feedforward is computable at every scheduled set point."""
+    for name, ctl in s.controllers().items():
+        if not ctl.feedforward_params:
+            continue
+        for plant in sorted({lp.plant for lp in s.loops.values() if lp.controller == name}):
+            cfg = s.plant(plant)
+            try:
+                registry.build(cfg.model, {**cfg.params, **ctl.feedforward_params})
+            except (ValueError, TypeError) as err:
+                first = str(err).splitlines()
+                raise ValueError(
+                    f"nodes.{name}.feedforward_params: not parameters of plant {plant!r} "
+                    f"({cfg.model}): {' '.join(first[:3])}"
+                ) from err
     current = {name: lp.setpoint for name, lp in s.loops.items() if lp.setpoint is not None}
     order = sorted(range(len(s.setpoints)), key=lambda i: s.setpoints[i].t)
     for index in [None, *order]:
