@@ -22,6 +22,7 @@ from runtime.affinity import parse_affinity
 from runtime.artefacts import REFUSED_LOG
 from runtime.forkserver import run_node
 from runtime.launcher import INTERRUPTED, launch
+from runtime.report import AUTO_LOOPS, PLOTS, SUMMARY_FIGURE
 from runtime.router import serve_router
 from runtime.security import use_node_credentials
 from scenario import load_scenario
@@ -93,12 +94,25 @@ def _add_run(parser: argparse.ArgumentParser) -> None:
         "--affinity '*=0' --affinity historian=1",
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
+    add_plots(parser)
     parser.add_argument(
         "--force",
         action="store_true",
         help="replace the run already in --out (refused without it)",
     )
     add_set(parser)
+
+
+def add_plots(parser: argparse.ArgumentParser) -> None:
+    """``--plots``: which figures are drawn (:func:`runtime.report.write_plots`)."""
+    parser.add_argument(
+        "--plots",
+        choices=PLOTS,
+        default="auto",
+        help=f"figures drawn: all (one per loop, the agent's, the laws'), summary (every loop "
+        f"in one figure, {SUMMARY_FIGURE}, and the agent's), none; auto (default): all up to "
+        f"{AUTO_LOOPS} loops, summary beyond",
+    )
 
 
 def table(summary: dict[str, Any]) -> str:
@@ -160,6 +174,7 @@ def _run(args: argparse.Namespace, on_start: Callable[[Path], None] | None) -> i
         zenoh_config=args.zenoh_config,
         tls=args.tls,
         affinity=parse_affinity(args.affinity),
+        plots=args.plots,
     )
     if result.code == INTERRUPTED:
         where = f"; partial results in {args.out}" if result.summary else ""

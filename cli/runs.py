@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from agents.wncsca.timeline import format_timeline
-from cli.bus import table
+from cli.bus import add_plots, table
 from cli.table import Command
 from core.errors import ConfigError
 from dashboard import command as dashboard_command
@@ -25,6 +25,7 @@ __all__ = ["REPORT", "INJECT_COMMAND", "DASHBOARD", "ASSESS", "EXPORT"]
 
 def _add_report(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dir", metavar="DIR", help="run directory written by wncs run")
+    add_plots(parser)
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -36,7 +37,7 @@ def _report(args: argparse.Namespace) -> int:
     if (out / "history.sqlite").exists() and "messages" in old:
         rec.dropped_invalid = old["messages"].get("dropped_invalid", {})
     summary = write_summary(rec, out)
-    paths = write_plots(rec, out, scenario=scenario)
+    paths = write_plots(rec, out, scenario=scenario, plots=args.plots, summary=summary)
     print(table(summary))
     if "wncsca" in summary:
         print(format_timeline(summary))

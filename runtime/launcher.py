@@ -61,7 +61,7 @@ from runtime.direct import simulate
 from runtime.forked import ForkServer
 from runtime.history import load_record
 from runtime.nodes import bus_node, clock_runner
-from runtime.report import save_record, write_plots, write_summary
+from runtime.report import PLOTS, save_record, write_plots, write_summary
 from runtime.security import (
     LAUNCHER,
     SECURITY_ENV,
@@ -214,6 +214,7 @@ class LaunchOptions:
     zenoh_config: str | None = None
     tls: bool = False
     affinity: Mapping[str, frozenset[int]] = field(default_factory=dict)
+    plots: str = "auto"
 
     def checked(self) -> LaunchOptions:
         """These options, refused where they contradict each other (``ValueError`` for an
@@ -221,6 +222,8 @@ class LaunchOptions:
         default endpoint."""
         if self.engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {self.engine!r}")
+        if self.plots not in PLOTS:
+            raise ConfigError(f"--plots: one of {', '.join(PLOTS)}, got {self.plots!r}")
         if not self.tls:
             return self
         if self.engine == "direct":
@@ -284,6 +287,7 @@ def launch(
     zenoh_config: str | None = None,
     tls: bool = False,
     affinity: Mapping[str, frozenset[int]] | None = None,
+    plots: str = "auto",
 ) -> RunResult:
     """Run a scenario; a bad scenario raises ``ConfigError`` before anything starts.
 
@@ -301,7 +305,8 @@ def launch(
     ``affinity`` pins the run's processes to CPUs (:mod:`runtime.affinity`, ``--affinity``);
     one it cannot apply is refused before anything starts. The threads engine's process and
     its router run on one CPU unless ``affinity`` gives ``*`` (:func:`~runtime.affinity.
-    with_default`).
+    with_default`). ``plots`` says which figures the run draws
+    (:func:`runtime.report.write_plots`: ``auto``, ``all``, ``summary`` or ``none``).
     """
     options = LaunchOptions(
         engine=engine,
@@ -316,6 +321,7 @@ def launch(
         zenoh_config=zenoh_config,
         tls=tls,
         affinity=dict(affinity or {}),
+        plots=plots,
     )
     return launch_with(scenario_path, out, options)
 
@@ -363,7 +369,8 @@ def _summarize(run: Run, outcome: Outcome) -> RunResult:
     if outcome.record is None:
         return RunResult(outcome.code, outcome.error or "run failed", {}, run.out)
     summary = write_summary(outcome.record, run.out, **outcome.extra)
-    write_plots(outcome.record, run.out, scenario=run.scenario)
+    plots = run.options.plots
+    write_plots(outcome.record, run.out, scenario=run.scenario, plots=plots, summary=summary)
     return RunResult(outcome.code, outcome.error, summary, run.out)
 
 

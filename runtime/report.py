@@ -8,6 +8,8 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agents.wncsca.plots import run_plots
 from controllers.law_plots import figures_of
 from core.errors import ConfigError
@@ -23,6 +25,10 @@ __all__ = [
     "RECORD_FILE",
     "write_summary",
     "write_plots",
+    "PLOTS",
+    "AUTO_LOOPS",
+    "SUMMARY_FIGURE",
+    "summary_figure",
     "draw_loop",
     "law_figures",
     "save_record",
@@ -148,21 +154,46 @@ def draw_loop(ax: Any, ax_u: Any, rec: RunRecord, name: str) -> None:
     ax_u.grid(True, alpha=0.3)
 
 
-def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) -> list[Path]:
+PLOTS = ("auto", "all", "summary", "none")
+"""``wncs run --plots``: which figures a run draws."""
+
+AUTO_LOOPS = 10
+"""``auto`` draws every loop's figure up to this many loops, the summary figure beyond."""
+
+
+def write_plots(
+    rec: RunRecord,
+    out: Path,
+    *,
+    scenario: Scenario | None = None,
+    plots: str = "auto",
+    summary: dict[str, Any] | None = None,
+) -> list[Path]:
     """Write the run's plots and return their paths.
 
-    One PNG per loop: the true output and its set point against time, and the control moves;
-    the coordination agent's figures when it ran; and, given the ``scenario``, the figures of
-    every multi-loop controller whose law registers some (:func:`law_figures`). Drawn on
-    :class:`matplotlib.figure.Figure` objects of their own: no pyplot, so a notebook's backend
-    and current figure are left alone.
+    ``plots`` (``wncs run --plots``): ``all``, one PNG per loop (the true output and its set
+    point against time, and the control moves), the coordination agent's figures when it ran,
+    and, given the ``scenario``, the figures of every multi-loop controller whose law registers
+    some (:func:`law_figures`); ``summary``, one figure of every loop at once
+    (:func:`summary_figure`, from ``summary`` when the run's is at hand) and the agent's;
+    ``none``; ``auto`` (the default), ``all`` up to :data:`AUTO_LOOPS` loops, ``summary``
+    beyond (a hundred loops' figures took longer to draw than the run: issue 41, item 3).
+    Drawn on :class:`matplotlib.figure.Figure` objects of their own: no pyplot, so a notebook's
+    backend and current figure are left alone.
     """
     from matplotlib.figure import Figure
 
+    if plots not in PLOTS:
+        raise ConfigError(f"--plots: one of {', '.join(PLOTS)}, got {plots!r}")
+    loops = [n for n, lp in sorted(rec.loops.items()) if lp.sensor is not None]
+    if plots == "auto":
+        plots = "all" if len(loops) <= AUTO_LOOPS else "summary"
+    if plots == "none":
+        return []
     paths = []
-    for name, loop in sorted(rec.loops.items()):
-        if loop.sensor is None:
-            continue  # an actuator-only loop: no output to plot
+    if plots == "summary":
+        paths.append(summary_figure(rec, out, summary or summarize(rec)))
+    for name in loops if plots == "all" else ():  # an actuator-only loop has no output
         fig = Figure(figsize=(7, 5))
         ax, ax_u = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
         draw_loop(ax, ax_u, rec, name)
@@ -174,9 +205,55 @@ def write_plots(rec: RunRecord, out: Path, *, scenario: Scenario | None = None) 
         paths += run_plots(
             wncsca_summary(rec.wncsca), out, unit=rec.time_unit, end_time=to_units(rec.end_time)
         )
-    if scenario is not None:
+    if scenario is not None and plots == "all":
         paths += law_figures(rec, scenario, out)
     return paths
+
+
+SUMMARY_FIGURE = "loops.png"
+
+
+def summary_figure(rec: RunRecord, out: Path, summary: dict[str, Any]) -> Path:
+    """Every loop of the run in one figure (``loops.png``): each loop's tracking error
+    ``y - r`` over its largest set-point step (or over its set point's magnitude when it has
+    none) against time, all loops on one axes; each step's overshoot and each loop's IAE by
+    loop. ``summary``: the run's ``summary.json`` (its loops' steps and IAE)."""
+    from matplotlib.figure import Figure
+
+    names = [n for n, lp in sorted(rec.loops.items()) if lp.sensor is not None]
+    fig = Figure(figsize=(9, 8))
+    ax_e, ax_os, ax_iae = fig.subplots(3, 1, gridspec_kw={"height_ratios": [2, 1, 1]})
+    for name in names:
+        loop = rec.loops[name]
+        assert loop.sensor is not None
+        t, y = rec.plants[loop.plant].signal(loop.sensor)
+        sp_t = np.asarray([to_units(v) for v, _ in loop.setpoints])
+        sp_v = np.asarray([v for _, v in loop.setpoints], dtype=float)
+        r = sp_v[np.clip(np.searchsorted(sp_t, t, side="right") - 1, 0, len(sp_v) - 1)]
+        steps = np.abs(np.diff(sp_v))
+        scale = float(steps.max()) if steps.size and steps.max() > 0 else abs(sp_v[0]) or 1.0
+        ax_e.plot(t, (y - r) / scale, lw=0.6, alpha=0.5)
+    ax_e.set_ylabel("(y - r) / largest step")
+    ax_e.set_xlabel(f"time [{rec.time_unit}]")
+    ax_e.set_title(f"{rec.scenario}: {len(names)} loops ({rec.engine} engine)")
+    ax_e.grid(True, alpha=0.3)
+    loops = summary["loops"]
+    for i, name in enumerate(names):
+        os_ = [s["overshoot_pct"] for s in loops[name].get("steps", [])]
+        ax_os.plot([i] * len(os_), [v if v is not None else np.nan for v in os_], ".", color="C0")
+    ax_os.set_ylabel("overshoot %")
+    ax_os.grid(True, alpha=0.3)
+    iae = [loops[n]["iae"] if loops[n]["iae"] is not None else np.nan for n in names]
+    ax_iae.bar(range(len(names)), iae, color="C1")
+    ax_iae.set_ylabel("IAE")
+    ax_iae.set_xlabel("loop")
+    ticks = range(0, len(names), max(1, len(names) // 20))
+    for ax in (ax_os, ax_iae):
+        ax.set_xticks(list(ticks), [names[i] for i in ticks], rotation=90, fontsize=6)
+    fig.tight_layout()
+    path = out / SUMMARY_FIGURE
+    fig.savefig(path, dpi=100)
+    return path
 
 
 def law_figures(rec: RunRecord, scenario: Scenario, out: Path) -> list[Path]:
