@@ -91,6 +91,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
@@ -102,6 +104,7 @@ __all__ = [
     "NonlinearPI",
     "PI2DOFConfig",
     "TwoDofPI",
+    "twodof_update",
 ]
 
 SETTLING_LOG = 4.6
@@ -441,3 +444,33 @@ class TwoDofPI(_TwoDofBase):
     def _rest_integral(self, y: float) -> float:
         u_eq = self.a_prime * math.sqrt(y if y > 0.0 else 0.0) / self.b
         return (u_eq + self.Kp * y) / self.Ki
+
+
+def twodof_update(
+    static: NDArray[np.float64],
+    increment: NDArray[np.float64],
+    integral: NDArray[np.float64],
+    ki: NDArray[np.float64] | float,
+    u_min: NDArray[np.float64] | float,
+    u_max: NDArray[np.float64] | float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One execution of the 2-DOF laws' :meth:`~_TwoDofBase.step` elementwise (the coordination
+    agent's vectorised trials, :mod:`agents.wncsca.laws`): ``(u, integral after)``.
+
+    ``static`` is the command without the integral at the measured level (``-K_p h + K_l
+    sqrt(h)`` or ``-K_p h``), ``increment`` the integral's update before clamping (the rule's
+    ``dt e``; zero at the first execution, whose integral the caller sets by the start rule).
+    The clamp and the saturated output follow :meth:`~_TwoDofBase.step` operation by operation,
+    so the values are bit-equal to it (``tests/unit/test_twodof_update.py``).
+    """
+    trial = integral + increment
+    v = ki * trial + static
+    up = (v > u_max) & (increment > 0.0)
+    down = (v < u_min) & (increment < 0.0)
+    new = np.where(
+        up,
+        np.maximum(integral, (u_max - static) / ki),
+        np.where(down, np.minimum(integral, (u_min - static) / ki), trial),
+    )
+    v = ki * new + static
+    return np.minimum(np.maximum(v, u_min), u_max), new

@@ -18,7 +18,7 @@ from pydantic import BaseModel
 
 from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
-from agents.wncsca.fast.predictor import MODELLED_LAWS, unmodelled_law
+from agents.wncsca.laws import MODELLED_LAWS, unmodelled_law
 from agents.wncsca.links import link_groups
 from controllers.registry import (
     accepts_actuator_only_loops,
@@ -260,9 +260,10 @@ def check_agent(s: ScenarioSchema) -> None:
 
 
 def check_agent_method(s: ScenarioSchema) -> None:
-    """The agent's method models every loop it judges: the fast and chance methods linearise
-    PI loops only (:data:`agents.wncsca.fast.predictor.MODELLED_LAWS`); the paper's method
-    simulates any law."""
+    """The agent's method models every loop it judges: the fast and chance methods model the PI
+    and seed 002's 2-DOF laws (:data:`agents.wncsca.laws.MODELLED_LAWS`) and refuse the others
+    with the reason (:data:`agents.wncsca.laws.REFUSED`); the paper's method simulates any
+    single-loop law."""
     for name, cfg in s.nodes_of(WncscaConfig).items():
         if cfg.method == "paper":
             continue

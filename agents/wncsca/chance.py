@@ -17,10 +17,12 @@ the test), for ``R`` realizations at once in numpy. In realization ``r``:
   delivered after ``max(0, mu_i + delta_rk)``: ``mu_i`` the control-path mean delay being judged,
   ``delta`` a draw of the proposal's distribution minus its mean (its *shape*, held while ``mu``
   varies: so the delay bound is a bound on the mean with that shape);
-* at each delivery the loop's PI (:mod:`controllers.pi`: forward or backward integral over the
-  actual time between executions, clamping anti-windup, output limits, the feedforward of the set
-  points in force) executes with the delivered value; a lost sample leaves the input held, as on
-  the bus; a late sample overtaken by a newer one is still executed, as the controller node does;
+* at each delivery the loop's law executes with the delivered value, as the controller node
+  executes it (:mod:`agents.wncsca.laws`: the PI of :mod:`controllers.pi` with the feedforward of
+  the set points in force, or seed 002's 2-DOF laws with their linearising term as it is; the
+  integral over the actual time between executions, clamping anti-windup, output limits); a lost
+  sample leaves the input held, as on the bus; a late sample overtaken by a newer one is still
+  executed, as the controller node does;
 * each test step falls at a random phase ``j / 64`` of its loop's period after a sampling instant
   (``j`` uniform), the phases the paper's ``phase: worst`` tries at 4 points;
 * between events the plant is LTI, so the state moves exactly (modal exponentials), and the output
@@ -62,10 +64,10 @@ from numpy.typing import NDArray
 
 from agents.wncsca.fast import LinearPredictor, phi1
 from agents.wncsca.fast.predictor import PlantData
+from agents.wncsca.laws import modelled_law, stack
 from agents.wncsca.model import Evaluation, LoopModel
 from agents.wncsca.spec import JudgedPlant
 from agents.wncsca.uncertainty import ModelDraws, model_draws, plant_model
-from controllers.pi import pi_update
 from core.time import TICKS_PER_UNIT, to_ticks, to_units
 from gateway import distribution
 
@@ -211,7 +213,7 @@ class LinearMonteCarlo:
     Parameters
     ----------
     model : LoopModel
-        The agent's model (its trial scenario, test, loops and PI laws).
+        The agent's model (its trial scenario, test, loops and control laws).
     laws : mapping
         Loop -> :class:`LoopLaw` (default: constant delay, no loss).
     realizations : int
@@ -226,7 +228,8 @@ class LinearMonteCarlo:
     Raises
     ------
     ValueError
-        A loop's law is not ``pi``, or the linearised plant is not diagonalisable.
+        A loop's law is not modelled (:mod:`agents.wncsca.laws`), or the linearised plant is
+        not diagonalisable.
     """
 
     def __init__(
@@ -250,7 +253,19 @@ class LinearMonteCarlo:
             self.blocks = [slice(0, realizations)]
             self.draw_of = np.arange(realizations) % M
         self.laws = {n: laws.get(n, LoopLaw()) for n in self.loops}
-        self.pi = lin.laws
+        spec = model.trials.spec
+        self.control = dict(lin.laws)  # each loop's control law, per realization's draw
+        if not self.draws.exact:
+            for n in self.loops:
+                judged = spec.loops[n]
+                plant = spec.plants[judged.plant]
+                self.control[n] = stack(
+                    [
+                        modelled_law(judged.law, plant_model(plant, p.get(judged.plant, {})), n)
+                        for p in self.draws.sets
+                    ],
+                    self.draw_of,
+                )
         self.end = to_units(lin.end)
         plants = list(lin.plants.values())
         # one state vector: the plants' states stacked
@@ -278,7 +293,6 @@ class LinearMonteCarlo:
             stage_sp.append(dict(sp))
         n_loops = len(self.loops)
         self.n_stages = len(stage_sp)
-        spec = model.trials.spec
         for m, params in enumerate(self.draws.sets):
             drawn = [_drawn(p, spec.plants[p.name], params.get(p.name, {})) for p in plants]
             self._linearise_stages(drawn, offsets, nx, nu, stage_sp, m * self.n_stages, M)
@@ -525,15 +539,18 @@ class LinearMonteCarlo:
         t_exec: NDArray[np.float64],
         u: NDArray[np.float64],
     ) -> NDArray[np.float64]:
-        """The PI of loop ``i`` (:class:`controllers.pi.PI`) executes in the masked
+        """The law of loop ``i`` (:mod:`agents.wncsca.laws`) executes in the masked
         realizations at ``t`` on the delivered ``y``."""
-        law = self.pi[name]
+        law = self.control[name]
         e = r[:, i] - y
         first = np.isnan(t_exec[:, i])
         dt = np.where(first, 0.0, t - np.nan_to_num(t_exec[:, i]))
-        incr = law.ki * (e_prev[:, i] if law.forward else e) * dt
+        incr = law.increment(e, e_prev[:, i], dt)
+        start = integral[:, i]
+        if (first & mask).any():
+            start = np.where(first, law.start(y, start), start)
         ubar = self.ubar[stage, i]
-        out, new_int = pi_update(e, incr, integral[:, i], ubar, law.kp, law.u_min, law.u_max)
+        out, new_int = law.update(e, y, incr, start, ubar)
         integral[:, i] = np.where(mask, new_int, integral[:, i])
         e_prev[:, i] = np.where(mask, e, e_prev[:, i])
         t_exec[:, i] = np.where(mask, t, t_exec[:, i])

@@ -12,15 +12,16 @@ so the **jitter margin** is ``J_m = 1 / sup_w w |T(jw)|`` (:func:`jitter_margin`
 ``k / s`` the margin is exactly ``1 / k`` (the supremum is reached as ``w -> inf``).
 
 For the agent's loops (:func:`loop_margins`) the plant is linearised at the equilibrium of the
-test's final set points (:class:`agents.wncsca.fast.LinearPredictor`'s plant data), the PI laws
-taken in continuous time (``Kp + Ki / s``), and each loop is broken at its own input with the
-other loops of its plant closed (each with its nominal delay): ``L_i = C_i (G_ii - G_ij C_j
-G_ji / (1 + C_j G_jj e^{-s L_j}) e^{-s L_j})`` for two loops, in general by the matrix identity
-below. The nominal delay of loop ``i`` is the shortest control-path delay of its distribution;
-the variation it must tolerate (:func:`delay_variation`) is its delay spread up to the 0.999
-quantile, plus the sample-and-hold's (one period: a sample's age at the controller's next
-execution varies over ``[0, h)``), plus one period per consecutive loss with probability at
-least 1e-3.
+test's final set points (:class:`agents.wncsca.fast.LinearPredictor`'s plant data), the laws
+taken in continuous time by their feedback from the measurement (``k_y + k_i / s`` of
+:class:`agents.wncsca.laws.LinearForm`: ``Kp + Ki / s`` for the PI), and each loop is broken at
+its own input with the other loops of its plant closed (each with its nominal delay):
+``L_i = C_i (G_ii - G_ij C_j G_ji / (1 + C_j G_jj e^{-s L_j}) e^{-s L_j})`` for two loops, in
+general by the matrix identity below. The nominal delay of loop ``i`` is the shortest
+control-path delay of its distribution; the variation it must tolerate (:func:`delay_variation`)
+is its delay spread up to the 0.999 quantile, plus the sample-and-hold's (one period: a sample's
+age at the controller's next execution varies over ``[0, h)``), plus one period per consecutive
+loss with probability at least 1e-3.
 """
 
 from __future__ import annotations
@@ -91,7 +92,9 @@ def loop_margins(
         s = 1j * w
         eye = np.eye(A.shape[0])
         G = np.stack([Cy[rows] @ np.linalg.solve(si * eye - A, B[:, cols]) for si in s])
-        C = np.stack([np.array([lin.laws[n].kp + lin.laws[n].ki / si for n in names]) for si in s])
+        y_start = np.asarray(plant.model.outputs(plant.x0), dtype=float)
+        forms = [lin.laws[n].linear(final[n], float(y_start[plant.y_index[n]])) for n in names]
+        C = np.stack([np.array([f.k_y + f.k_i / si for f in forms]) for si in s])
         D = np.stack([np.exp(-s * nominal[n]) for n in names], axis=1)  # (w, loops)
         for i, n in enumerate(names):
             # break loop i at its input: the others closed, u_i -> y -> u_i

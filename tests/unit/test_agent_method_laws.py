@@ -1,11 +1,12 @@
 """Every single-loop law the platform ships is judged by the agent's method or refused when the
 scenario loads (issue 35, item 7): the tank of seed 002 with each law under an agent.
 
-The fast and chance methods model PI loops (:data:`agents.wncsca.fast.predictor.
-MODELLED_LAWS`); a loop of another law under them is refused by ``wncs validate`` with the loop,
-its law and the method that applies (``paper``), never a traceback at run time. The paper's
-method simulates any law, so it accepts all of them. Multi-loop laws (MRAC, QDC, the PI-P
-cascade) are not judged by simulation at all (their loops are governed through their links'
+The fast and chance methods model the PI and seed 002's 2-DOF laws (:data:`agents.wncsca.laws.
+MODELLED_LAWS`; ``tests/integration/test_wncsca_laws.py`` runs the tank's non-linear PI under
+them); a loop of another law under them is refused by ``wncs validate`` with the loop, its law,
+why it is not modelled and the method that applies (``paper``), never a traceback at run time.
+The paper's method simulates any law, so it accepts all of them. Multi-loop laws (MRAC, QDC, the
+PI-P cascade) are not judged by simulation at all (their loops are governed through their links'
 update periods), so the agent's method does not apply to them.
 """
 
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.wncsca.fast.predictor import MODELLED_LAWS
+from agents.wncsca.laws import MODELLED_LAWS, REFUSED
 from controllers.registry import LAWS
 from core.errors import ConfigError
 from scenario import load_scenario
@@ -57,3 +58,4 @@ def test_each_law_is_judged_or_refused_with_its_reason(tmp_path, law, method):
     msg = str(info.value)
     assert str(path) in msg and "nodes.agent.method" in msg, msg
     assert "loop 'level'" in msg and f"{law!r}" in msg and "method 'paper'" in msg, msg
+    assert REFUSED[law] in msg, msg

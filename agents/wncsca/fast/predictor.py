@@ -11,19 +11,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents.wncsca.fast.lti import PADE_ORDER, Modal, Models, distinct_ticks, pade
+from agents.wncsca.laws import Law, modelled_law
 from agents.wncsca.model import LoopModel
-from controllers.pi import PIConfig, pi_update
 from core.time import TICKS_PER_UNIT, to_ticks
 from plants.linearization import equilibrium, jacobians
-
-
-@dataclass(frozen=True)
-class Law:
-    kp: float
-    ki: float
-    u_min: float
-    u_max: float
-    forward: bool
 
 
 @dataclass
@@ -78,22 +69,6 @@ class PlantData:
         return equilibrium(self.model, y_bar, self.x0, self.u0, free)
 
 
-MODELLED_LAWS: tuple[type[PIConfig], ...] = (PIConfig,)
-"""The control laws the fast and chance methods model: their loops are linearised with the PI of
-:mod:`controllers.pi` (:func:`~controllers.pi.pi_update`). The paper's method judges a loop of
-any law, by simulating it (``scenario.checks.check_agent_method`` refuses the rest on load)."""
-
-
-def unmodelled_law(method: str, loop: str, law: Any) -> str:
-    """Why ``method`` cannot judge ``loop``, whose law ``law`` is not in :data:`MODELLED_LAWS`."""
-    modelled = ", ".join(repr(c.model_fields["type"].default) for c in MODELLED_LAWS)
-    return (
-        f"the {method} method cannot judge loop {loop!r}: its control law is "
-        f"{getattr(law, 'type', type(law).__name__)!r}, and the {method} method models only "
-        f"{modelled} loops; method 'paper' judges any law by simulating it"
-    )
-
-
 class LinearPredictor:
     """Predicted worst-case overshoots of the agent's test on the linearised, exactly discretised
     loops (see the module docstring), for batches of candidate periods.
@@ -122,12 +97,10 @@ class LinearPredictor:
         self.shift = cfg.phase == "worst"
         self.predictions = 0
         self.items = 0
-        self.laws: dict[str, Law] = {}
-        for n in self.loops:
-            law = spec.loops[n].law
-            if not isinstance(law, MODELLED_LAWS):
-                raise ValueError(unmodelled_law("fast", n, law))
-            self.laws[n] = Law(law.Kp, law.Ki, law.u_min, law.u_max, law.integration == "forward")
+        self.laws: dict[str, Law] = {
+            n: modelled_law(spec.loops[n].law, spec.plants[spec.loops[n].plant].model, n)
+            for n in self.loops
+        }
         self.plant_of = {n: spec.loops[n].plant for n in self.loops}
         self.plants: dict[str, PlantData] = {}
         for pname in sorted(set(self.plant_of.values())):
@@ -229,9 +202,11 @@ class LinearPredictor:
         setpoints: tuple[float, ...],
         others_h: tuple[int, ...],
     ) -> Modal:
-        """The continuous model of ``plant`` seen by ``loop``: the other loops closed by their PI
+        """The continuous model of ``plant`` seen by ``loop``: the other loops closed by their
+        laws' linear forms (:class:`agents.wncsca.laws.LinearForm`, about their set points)
         with measurement delay ``tau_d + h/2`` (Pade)."""
         A, B, Cy, y0, x_bar, u_bar, f0 = plant.linearization(setpoints)
+        y_start = np.asarray(plant.model.outputs(plant.x0), dtype=float)
         others = [n for n in plant.loops if n != loop]
         nx = A.shape[0]
         pades = [
@@ -252,7 +227,9 @@ class LinearPredictor:
         G[:nx, 0] = B[:, plant.u_index[loop]]
         at = nx
         for k, (j, (Ap, Bp, Cp, Dp)) in enumerate(zip(others, pades, strict=True)):
-            law = self.laws[j]
+            law = self.laws[j].linear(
+                setpoints[plant.loops.index(j)], float(y_start[plant.y_index[j]])
+            )
             b = B[:, plant.u_index[j]]
             cy = Cy[plant.y_index[j]]
             yo = y0[plant.y_index[j]]
@@ -260,19 +237,19 @@ class LinearPredictor:
             q, w = at, at + 1
             npd = Ap.shape[0]
             # delayed measurement: y~ = Cp w + Dp (cy x + yo); w' = Ap w + Bp (cy x + yo)
-            # u_j = u_bar_j + Kp (r_j - y~) + Ki q ; q' = r_j - y~
-            F[:nx, :nx] -= law.kp * dp * np.outer(b, cy)
-            F[:nx, q] = law.ki * b
+            # u_j = c_j + u_bar_j + k_r r_j - k_y y~ + k_i q ; q' = r_j - y~
+            F[:nx, :nx] -= law.k_y * dp * np.outer(b, cy)
+            F[:nx, q] = law.k_i * b
             F[q, :nx] = -dp * cy
             Gw[q, 0] = -dp * yo
-            Gw[:nx, 0] -= law.kp * dp * yo * b
+            Gw[:nx, 0] += (law.c - law.k_y * dp * yo) * b
             if npd:
-                F[:nx, w : w + npd] = -law.kp * np.outer(b, Cp[0])
+                F[:nx, w : w + npd] = -law.k_y * np.outer(b, Cp[0])
                 F[q, w : w + npd] = -Cp[0]
                 F[w : w + npd, :nx] = np.outer(Bp[:, 0], cy)
                 F[w : w + npd, w : w + npd] = Ap
                 Gw[w : w + npd, 0] = Bp[:, 0] * yo
-            Gw[:nx, 1 + k] = law.kp * b  # r_j
+            Gw[:nx, 1 + k] = law.k_r * b  # r_j
             Gw[q, 1 + k] = 1.0
             Gw[:nx, 1 + len(others) + k] = b  # u_bar_j
             at += 1 + npd
@@ -564,19 +541,21 @@ class _Batch:
         # per period (numpy types a reduction's tolist() as bool | Any: a list here, axis given)
         all_ok = cast("list[bool]", valid.all(axis=0).tolist())
         all_later = cast("list[bool]", later.all(axis=0).tolist())
-        lo_v, hi_v = law.u_min, law.u_max
         with np.errstate(over="ignore", invalid="ignore"):
             for k in range(k_max):
                 xs[:, k] = xi
                 ybuf[:, k] = np.add.reduce(cy_k[:, k] * xi, axis=1) + y0_k[:, k]  # np.sum's
-                # the PI law of controllers.pi on sample k - lag, executed at offset theta
-                err = r_exec[:, k] - ybuf[ar, m_idx[:, k]]
-                incr = law.ki * (e_prev if law.forward else err) * h
-                if not all_later[k]:
+                # the loop's law on sample k - lag, executed at offset theta
+                y_k = ybuf[ar, m_idx[:, k]]
+                err = r_exec[:, k] - y_k
+                incr = law.increment(err, e_prev, h)
+                if not all_later[k]:  # the first execution: no integration, the start rule
                     incr = np.where(later[:, k], incr, 0.0)
+                    first = valid[:, k] & ~later[:, k]
+                    integral = np.where(first, law.start(y_k, integral), integral)
                 if not all_ok[k]:  # the items whose sample k - lag does not exist yet wait
                     incr = np.where(valid[:, k], incr, 0.0)
-                u_new, integral = pi_update(err, incr, integral, ub_exec[:, k], law.kp, lo_v, hi_v)
+                u_new, integral = law.update(err, y_k, incr, integral, ub_exec[:, k])
                 if all_ok[k]:
                     e_prev = err
                 else:
