@@ -11,7 +11,8 @@ so each prediction is checked here against the direct engine, which shares none 
   (measured 0.05-0.3 points on the 50 -> 100 mm step);
 * the fast method's prediction is the non-linear tank's overshoot at every period and delay;
 * the scenario runs: the agent accepts the proposal with periods whose stated probability is at
-  least the confidence, and the steps that follow keep the limit.
+  least the confidence, and the steps that follow keep the limit (and every message comes from
+  an owner of its key: ``tests/unit/test_ownership.py`` leaves this scenario to this run).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from agents.wncsca.chance import ChanceModel, LoopLaw
 from agents.wncsca.fast import LinearPredictor
 from core.record import loop_metrics
 from runtime.direct import loop_model, simulate
+from runtime.ownership import owners_of, publishers
 from scenario import load_scenario
 from tests.conftest import SCENARIOS
 
@@ -87,7 +89,13 @@ def test_the_fast_prediction_is_the_nonlinear_tanks_overshoot(delay):
 
 def test_the_default_agent_judges_the_tanks_nonlinear_pi_and_the_steps_keep_the_limit():
     scenario = load_scenario(TANK)
-    rec = simulate(scenario)
+    seen: set[tuple[str, str]] = set()
+    rec = simulate(
+        scenario, observe=lambda messages: seen.update((m.key, m.src) for m in messages)
+    )
+    # every message from an owner of its key (the ownership test's check, on this run)
+    table = publishers(scenario)
+    assert seen and [(k, src) for k, src in seen if src not in owners_of(table, k)] == []
     decision = next(d for d in rec.wncsca["decisions"] if d["subject"] == "proposal")
     assert decision["verdict"] == "accept", decision["reasons"]
     assigned = next(r for r in rec.wncsca["rates"] if r.get("assignment"))
