@@ -21,11 +21,13 @@ import numpy as np
 import pytest
 
 from agents.wncsca.chance import ChanceModel, LoopLaw
+from agents.wncsca.config import WncscaConfig
 from agents.wncsca.fast import LinearPredictor
 from core.record import loop_metrics
 from runtime.direct import loop_model, simulate
 from runtime.ownership import owners_of, publishers
-from scenario import load_scenario
+from runtime.scale import scale_scenario
+from scenario import Scenario, load_scenario
 from tests.conftest import SCENARIOS
 
 TANK = SCENARIOS / "tank_wsn_chance.yaml"
@@ -87,12 +89,28 @@ def test_the_fast_prediction_is_the_nonlinear_tanks_overshoot(delay):
     assert max(checked) - min(checked) > 2.0, checked  # the period matters: not a flat comparison
 
 
+def test_the_fast_method_closes_a_trains_other_nonlinear_pi_loops_by_their_tangents():
+    """Three tanks in series, each with its NL PI started bumpless (``u_start``): the fast
+    method predicts a loop with the others closed by their laws' linear forms (Pade delays);
+    the non-linear train's overshoots agree where the Pade closure holds (periods to 1 s)."""
+    scenario = Scenario.model_validate(scale_scenario(3, plant="tank_train", per_gateway=3))
+    model = loop_model(scenario, WncscaConfig(method="fast", phase="fixed"))
+    loops = model.loops
+    periods = np.array([0.05, 0.5, 1.0])
+    rows = np.stack([periods] * len(loops), axis=1)
+    for delay in (0.0, 0.3):
+        delays = {n: delay for n in loops}
+        runs = [model.evaluate(dict.fromkeys(loops, h), delays).overshoot_pct for h in periods]
+        for n in loops:
+            predicted = LinearPredictor(model, delays).overshoots(n, rows)
+            checked = [run[n] for run in runs]
+            np.testing.assert_allclose(predicted, checked, atol=0.15, err_msg=f"{n} {delay}")
+
+
 def test_the_default_agent_judges_the_tanks_nonlinear_pi_and_the_steps_keep_the_limit():
     scenario = load_scenario(TANK)
     seen: set[tuple[str, str]] = set()
-    rec = simulate(
-        scenario, observe=lambda messages: seen.update((m.key, m.src) for m in messages)
-    )
+    rec = simulate(scenario, observe=lambda messages: seen.update((m.key, m.src) for m in messages))
     # every message from an owner of its key (the ownership test's check, on this run)
     table = publishers(scenario)
     assert seen and [(k, src) for k, src in seen if src not in owners_of(table, k)] == []

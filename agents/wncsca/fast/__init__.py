@@ -18,10 +18,12 @@ agent's whole set-point test (the test, step phases and end time of
 * loop ``i`` is exact: zero-order hold at its period ``h`` and the sensor-path delay
   ``tau_d = l h + theta`` (``0 <= theta < h``; the modified z-transform as two pieces per period,
   the held input before and after the delivery at ``theta``, with the ``l`` samples in flight
-  kept), the PI law of :mod:`controllers.pi` executed sample by sample (forward or backward
-  integral, output limits, clamping anti-windup, the feedforward and set point in force at each
-  execution);
-* the other loops of the same plant are closed in continuous time: their PI acts on their output
+  kept), its law executed sample by sample as the controller node executes it
+  (:mod:`agents.wncsca.laws`: the PI of :mod:`controllers.pi` or seed 002's 2-DOF laws; the
+  integral rule, output limits, clamping anti-windup, the start rule, the feedforward and set
+  point in force at each execution);
+* the other loops of the same plant are closed in continuous time: their law's linear form
+  (:class:`agents.wncsca.laws.LinearForm`, about the stretch's set point) acts on their output
   delayed by ``tau_d + h/2`` (the sample-and-hold's mean delay; Pade approximant of order 3), their
   set point and feedforward change at their first execution after each step, and their output
   limits are ignored. Loops on other plants cannot interact, and a loop's prediction is keyed
