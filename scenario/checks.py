@@ -11,14 +11,14 @@ file and the line. A check reads the scenario only through its fields and its de
 from __future__ import annotations
 
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
 from agents.monitor.config import MonitorNodeConfig
 from agents.wncsca.config import MODES, WncscaConfig
-from agents.wncsca.laws import MODELLED_LAWS, unmodelled_law
+from agents.wncsca.laws import MODELLED_LAWS, modelled_law, unmodelled_law
 from agents.wncsca.links import link_groups
 from controllers.registry import (
     accepts_actuator_only_loops,
@@ -267,10 +267,39 @@ def check_agent_method(s: ScenarioSchema) -> None:
     for name, cfg in s.nodes_of(WncscaConfig).items():
         if cfg.method == "paper":
             continue
-        for loop in s.simulated_loops():
+        judged = s.simulated_loops()
+        for loop in judged:
             law = s.controller(s.loops[loop].controller).law
             if not isinstance(law, MODELLED_LAWS):
                 raise ValueError(f"nodes.{name}.method: {unmodelled_law(cfg.method, loop, law)}")
+        _check_linear_forms(s, name, cfg, judged)
+
+
+def _check_linear_forms(
+    s: ScenarioSchema, name: str, cfg: WncscaConfig, judged: Sequence[str]
+) -> None:
+    """Each judged loop's law has a linear form where the fast and chance methods take one
+    (:meth:`agents.wncsca.laws.PILaw.linear`): at the test's final set point (the jitter
+    margin), and at every set point the test visits for a loop that shares its plant with another
+    judged loop (the fast method's closure of the other loops)."""
+    steps = cfg.test.setpoints if cfg.test is not None else s.setpoints
+    where = "test.setpoints" if cfg.test is not None else "test (default: setpoints)"
+    for loop in judged:
+        lp = s.loops[loop]
+        if lp.setpoint is None:
+            continue
+        moves = sorted((float(st.t), float(st.value)) for st in steps if st.loop == loop)
+        visited = [float(lp.setpoint)] + [v for _, v in moves]
+        shared = any(s.loops[n].plant == lp.plant for n in judged if n != loop)
+        law = modelled_law(s.controller(lp.controller).law, s.plant(lp.plant).build(), loop)
+        for value in visited if shared else visited[-1:]:
+            try:
+                law.linear(value, value)
+            except ValueError as err:
+                raise ValueError(
+                    f"nodes.{name}.{where}: loop {loop!r} at {value:g}: {err}; the {cfg.method} "
+                    "method needs it there (method 'paper' simulates the law)"
+                ) from err
 
 
 def check_agent_model(s: ScenarioSchema) -> None:

@@ -59,3 +59,26 @@ def test_each_law_is_judged_or_refused_with_its_reason(tmp_path, law, method):
     assert str(path) in msg and "nodes.agent.method" in msg, msg
     assert "loop 'level'" in msg and f"{law!r}" in msg and "method 'paper'" in msg, msg
     assert REFUSED[law] in msg, msg
+
+
+@pytest.mark.parametrize("method", ["fast", "chance"])
+def test_a_test_that_empties_the_tank_is_refused_where_the_nonlinear_pi_has_no_tangent(
+    tmp_path, method
+):
+    """The NL PI's linearising term ``K_l sqrt(h)`` has an infinite slope at 0: the jitter margin
+    needs the law's tangent at the test's final set point, so a test ending at an empty tank is
+    refused on load (naming the field) instead of failing in the agent's first decision."""
+
+    def edit(data: dict) -> None:
+        data["nodes"]["agent"] = {
+            "kind": "agent",
+            "method": method,
+            "test": {"end_time": 100.0, "setpoints": [{"t": 0.0, "loop": "level", "value": 0.0}]},
+        }
+
+    path = write_variant(tmp_path, TANK, f"empty_{method}.yaml", edit)
+    with pytest.raises(ConfigError) as info:
+        load_scenario(path)
+    msg = str(info.value)
+    assert "nodes.agent.test.setpoints" in msg and "loop 'level' at 0" in msg, msg
+    assert "infinite slope" in msg and "method 'paper'" in msg, msg
